@@ -1,0 +1,75 @@
+"""The parsed, validated scenario: immutable plain data handed to the planner.
+
+Nothing here reads files or calls FMUs; `master.scenario.reader` builds these objects.
+Times are exact rationals (fractions.Fraction) so that schedules never drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from pathlib import Path
+from typing import Literal
+
+Value = float | int | bool | str
+
+
+@dataclass(frozen=True)
+class Component:
+    """One FMU instance of the scenario."""
+
+    name: str
+    fmu_path: Path  # resolved .fmu file (project FMUs already built)
+    parameters: dict[str, Value] = field(default_factory=dict)  # variable name -> value
+    step_ratio: int = 1  # k: the component's communication step is macro_step / k
+    extrapolation_order: int = 0  # default order (0..3) of the polynomials on its inputs
+    interpolate_inputs: bool = False  # hand polynomials to the FMU if it canInterpolateInputs
+    group: str | None = None  # parallel backend: components sharing a group share a worker
+
+
+@dataclass(frozen=True)
+class Connection:
+    """Output `start_connector` of `start_component` drives input `end_connector` of `end_component`."""
+
+    start_component: str
+    start_connector: str
+    end_component: str
+    end_connector: str
+    extrapolation_order: int | None = None  # None: the consumer component's default
+
+
+@dataclass(frozen=True)
+class Stimulus:
+    """A signal on an input that no component drives.
+
+    kind "step": value `values[i]` from `times[i]` on (before times[0]: the input's start value).
+    kind "table": piecewise linear through (times, values), held constant outside.
+    """
+
+    component: str
+    variable: str
+    kind: Literal["step", "table"]
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    path: Path  # the file it came from (.ssd or .ssp)
+    name: str
+    components: tuple[Component, ...]
+    connections: tuple[Connection, ...]
+    start_time: Fraction
+    stop_time: Fraction
+    macro_step: Fraction  # H
+    coupling: Literal["jacobi", "gauss-seidel"] = "jacobi"
+    order: tuple[str, ...] = ()  # Gauss-Seidel: component names in stepping order
+    stimuli: tuple[Stimulus, ...] = ()
+    record: tuple[tuple[str, str], ...] = ()  # (component, variable); empty: all outputs
+    record_interval: Fraction | None = None  # None: every macro step
+
+    def component(self, name: str) -> Component:
+        for c in self.components:
+            if c.name == name:
+                return c
+        raise KeyError(name)
