@@ -1,0 +1,110 @@
+/* crashtest: a first-order lag that can be told to misbehave, for testing the master's isolation.
+ *
+ *   y' = -y + u
+ *
+ * Once t >= at_time, its derivative evaluation misbehaves according to `mode`:
+ *   0 normal, 1 segmentation fault, 2 hang (busy loop), 3 abort(), 4 return an error.
+ * Every derivative evaluation burns `cost_us` microseconds of CPU, so that a scene of
+ * crashtest components has a known, adjustable cost per step.
+ */
+#include <stdlib.h>
+#include <time.h>
+
+#include "model.h"
+
+enum { VR_SOLVER, VR_INTERNAL_STEP, VR_MODE, VR_AT_TIME, VR_COST_US, VR_U, VR_Y, VR_DER_Y, N_VARIABLES };
+
+enum { R_AT_TIME = R_MODEL_START, R_COST_US, R_U, R_Y, R_DER_Y, N_REALS };
+enum { I_MODE = I_MODEL_START, N_INTEGERS };
+
+enum { MODE_NORMAL, MODE_SEGFAULT, MODE_HANG, MODE_ABORT, MODE_ERROR };
+
+static const Variable VARIABLES[N_VARIABLES] = {
+    COMMON_VARIABLES(SOLVER_EULER, 0.0),
+    {"mode", T_INTEGER, C_PARAMETER, V_FIXED, I_EXACT, I_MODE, MODE_NORMAL, NULL, 0, 4, NULL,
+     "0 normal, 1 segfault, 2 hang, 3 abort, 4 error: what the derivative does once t >= at_time",
+     NO_STATE, NULL},
+    {"at_time", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_AT_TIME, 0.0, NULL, -INFINITY, INFINITY, "s",
+     "time from which the derivative misbehaves", NO_STATE, NULL},
+    {"cost_us", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_COST_US, 0.0, NULL, 0, INFINITY, "us",
+     "CPU time burnt by each derivative evaluation", NO_STATE, NULL},
+    {"u", T_REAL, C_INPUT, V_CONTINUOUS, I_DEFAULT, R_U, 0.0, NULL, -INFINITY, INFINITY, NULL,
+     "input", NO_STATE, NULL},
+    {"y", T_REAL, C_OUTPUT, V_CONTINUOUS, I_EXACT, R_Y, 1.0, NULL, -INFINITY, INFINITY, NULL,
+     "state and output", NO_STATE, ""},
+    {"der(y)", T_REAL, C_LOCAL, V_CONTINUOUS, I_CALCULATED, R_DER_Y, 0.0, NULL, -INFINITY, INFINITY, NULL,
+     "derivative of y", VR_Y, NULL},
+};
+
+static const int STATE_SLOTS[] = {R_Y};
+static const int DERIVATIVE_SLOTS[] = {R_DER_Y};
+
+static double now_us(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
+}
+
+/* Busy for `us` microseconds of wall time on an otherwise idle core: CPU work, not sleep. */
+static void burn(double us) {
+    if (us <= 0) return;
+    const double end = now_us() + us;
+    while (now_us() < end) {
+    }
+}
+
+static ModelStatus derivatives(Instance *inst, double t, const double *x, double *dx) {
+    const double *r = model_reals(inst);
+    burn(r[R_COST_US]);
+    if (t >= r[R_AT_TIME]) {
+        switch (model_integers(inst)[I_MODE]) {
+        case MODE_SEGFAULT: {
+            int *volatile nowhere = NULL; /* volatile: the compiler may not drop the write */
+            *nowhere = 1;
+            break;
+        }
+        case MODE_HANG: {
+            volatile int forever = 1;
+            while (forever) {
+            }
+            break;
+        }
+        case MODE_ABORT:
+            abort();
+        case MODE_ERROR:
+            model_log(inst, "logError", "crashtest: error requested at t = %g", t);
+            return MODEL_ERROR;
+        default:
+            break;
+        }
+    }
+    dx[0] = -x[0] + r[R_U];
+    return MODEL_OK;
+}
+
+static ModelStatus jacobian(Instance *inst, double t, const double *x, double *J) {
+    (void)inst;
+    (void)t;
+    (void)x;
+    J[0] = -1.0;
+    return MODEL_OK;
+}
+
+const ModelDef MODEL = {
+    .identifier = "crashtest",
+    .guid = "{4f1c2a7e-6b0d-4e8a-9c35-0d2b7e61c9a4}",
+    .description = "First-order lag that segfaults, hangs, aborts or fails on request (isolation tests)",
+    .variables = VARIABLES,
+    .n_variables = N_VARIABLES,
+    .n_reals = N_REALS,
+    .n_integers = N_INTEGERS,
+    .n_booleans = 0,
+    .n_strings = 0,
+    .n_states = 1,
+    .state_slots = STATE_SLOTS,
+    .derivative_slots = DERIVATIVE_SLOTS,
+    .initialize = NULL,
+    .derivatives = derivatives,
+    .jacobian = jacobian,
+    .outputs = NULL,
+};
