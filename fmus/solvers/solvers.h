@@ -17,7 +17,10 @@ typedef int (*JacFn)(void *ctx, double t, const double *x, double *J);   /* row 
 
 typedef struct SolverWork SolverWork;
 
-/* Number of doubles of solver memory for n states. */
+/* Number of doubles of solver memory for n states.  All zeros is a valid memory
+ * without history.  Multistep history carries on across solver_step calls even
+ * when the model's inputs changed in between (the paper's co-simulation); only a
+ * change of h (beyond 1e-12 relative) or of the method restarts it. */
 size_t solver_memory_size(int n);
 /* Forget the history (multistep methods start up again on the next step). */
 void solver_reset(double *memory, int n);
@@ -28,7 +31,9 @@ void solver_work_free(SolverWork *w);
 /* One step of `kind` from (t, x) to t + h, x updated in place.
  * jac may be NULL: semi-implicit methods then use forward finite differences.
  * A change of h restarts the multistep history.
- * Returns 0 on success, 1 if f or jac failed, 2 if the linear system is singular. */
+ * x is only written when the step succeeds.  n <= 0 is a no-op.  No allocation.
+ * Returns 0 on success, 1 if f or jac failed, 2 if the linear system is singular,
+ * 3 if kind is not a SolverKind. */
 int solver_step(SolverKind kind, double *memory, SolverWork *w, int n, RhsFn f, JacFn jac, void *ctx,
                 double t, double h, double *x);
 
