@@ -1,0 +1,1 @@
+"""Evidence: reference solutions, error measures, the work-precision bench and stability analysis."""

@@ -1,0 +1,315 @@
+"""Reference solutions: all FMUs of a scene integrated together through Model Exchange.
+
+The FMUs' ME interfaces give f(t, x, u) and y(t, x, u); the scene's connections close the loop
+and its stimuli drive the free inputs.  One stiff, tight-tolerance integrator (scipy Radau,
+rtol 1e-10) advances the concatenated states of all components monolithically, piecewise
+between stimulus break points so that step inputs do not smear.  Direct-feedthrough outputs
+are read after the producer's inputs are set, in topological order of the components.
+
+Results are cached in build/reference-cache/, keyed by a hash of the scenario file, the
+overrides, the integration settings and the FMU files.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import json
+import shutil
+import tempfile
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Model
+from scipy.integrate import solve_ivp
+
+from master.evidence.errors import Trajectory
+from master.scenario.model import Scenario, Stimulus
+
+CACHE_DIR = Path(__file__).resolve().parents[2] / "build" / "reference-cache"
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class NoModelExchange(Exception):
+    """A component's FMU offers no Model Exchange interface."""
+
+
+@dataclass
+class _Member:
+    """One component instantiated for Model Exchange."""
+
+    name: str
+    fmu: FMU2Model
+    unzip_dir: str
+    n: int  # number of continuous states
+    offset: int  # first index of its states in the concatenated state vector
+    vr: dict[str, int]  # variable name -> value reference
+    kind: dict[str, str]  # variable name -> FMI type (Real, Integer, Boolean, String, Enumeration)
+    feedthrough: set[str]  # outputs that depend on an input
+    x: np.ndarray  # state buffer handed to the FMU
+    dx: np.ndarray  # derivative buffer
+
+
+def _open(comp_name: str, fmu_path: Path, parameters: dict, start_time: float) -> _Member:
+    md = read_model_description(str(fmu_path))
+    if md.modelExchange is None:
+        raise NoModelExchange(f"{fmu_path}: component {comp_name!r} has no Model Exchange interface")
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    kind = {v.name: v.type for v in md.modelVariables}
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    feed = set()
+    for out in md.outputs:
+        deps = out.dependencies
+        if deps is None or any(d.name in inputs for d in deps):
+            feed.add(out.variable.name)
+    unzip = extract(str(fmu_path))
+    fmu = FMU2Model(
+        guid=md.guid,
+        unzipDirectory=unzip,
+        modelIdentifier=md.modelExchange.modelIdentifier,
+        instanceName=comp_name,
+    )
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=start_time)
+    for name, value in parameters.items():
+        if name not in vr:
+            shutil.rmtree(unzip, ignore_errors=True)
+            raise ValueError(f"{fmu_path}: component {comp_name!r} has no variable {name!r}")
+        _set(fmu, kind[name], vr[name], value)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    while fmu.newDiscreteStates()[0]:
+        pass
+    fmu.enterContinuousTimeMode()
+    n = md.numberOfContinuousStates
+    return _Member(comp_name, fmu, unzip, n, 0, vr, kind, feed, np.zeros(n), np.zeros(n))
+
+
+def _set(fmu: FMU2Model, kind: str, vr: int, value) -> None:
+    if kind == "Real":
+        fmu.setReal([vr], [float(value)])
+    elif kind in ("Integer", "Enumeration"):
+        fmu.setInteger([vr], [int(value)])
+    elif kind == "Boolean":
+        fmu.setBoolean([vr], [bool(value)])
+    else:
+        fmu.setString([vr], [str(value)])
+
+
+def _topological(scenario: Scenario, members: dict[str, _Member]) -> list[str]:
+    """Component order in which every direct-feedthrough producer precedes its consumers."""
+    # Consumer B waits for producer A when A's output depends on A's own inputs (direct
+    # feedthrough): A must be evaluated with its inputs set before B reads it.
+    after: dict[str, set[str]] = {name: set() for name in members}
+    for c in scenario.connections:
+        if c.start_connector in members[c.start_component].feedthrough:
+            after[c.end_component].add(c.start_component)
+    order: list[str] = []
+    done: set[str] = set()
+    while len(order) < len(members):
+        ready = [n for n in members if n not in done and after[n] <= done]
+        if not ready:
+            loop = sorted(n for n in members if n not in done)
+            raise ValueError(f"{scenario.path}: algebraic loop through components {', '.join(loop)}")
+        for n in ready:
+            order.append(n)
+            done.add(n)
+    return order
+
+
+def _stimulus_value(s: Stimulus, t: float, segment_start: float) -> float:
+    """Value of a stimulus: steps are held from the segment start, tables interpolate in t."""
+    if s.kind == "step":
+        value = None
+        for ti, vi in zip(s.times, s.values, strict=True):
+            if ti <= segment_start + 1e-12 * max(1.0, abs(ti)):
+                value = vi
+        return value  # None: before the first step, leave the input's start value
+    return float(np.interp(t, s.times, s.values))
+
+
+class _Scene:
+    """The monolithic ODE of a scene: concatenated states, connections, stimuli."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        t0 = float(scenario.start_time)
+        self.members: dict[str, _Member] = {}
+        try:
+            offset = 0
+            for comp in scenario.components:
+                m = _open(comp.name, comp.fmu_path, dict(comp.parameters), t0)
+                m.offset = offset
+                offset += m.n
+                self.members[comp.name] = m
+        except BaseException:
+            self.close()
+            raise
+        self.n = offset
+        self.order = _topological(scenario, self.members)
+        self.incoming = {
+            name: [c for c in scenario.connections if c.end_component == name] for name in self.members
+        }
+        self.stimuli = {name: [s for s in scenario.stimuli if s.component == name] for name in self.members}
+        self.segment_start = t0
+
+    def close(self) -> None:
+        for m in self.members.values():
+            try:
+                m.fmu.terminate()
+                m.fmu.freeInstance()
+            except Exception:  # noqa: BLE001  (an instance already in error: nothing more to free)
+                pass
+            shutil.rmtree(m.unzip_dir, ignore_errors=True)
+
+    def initial_state(self) -> np.ndarray:
+        x = np.zeros(self.n)
+        for m in self.members.values():
+            if m.n:
+                m.fmu.getContinuousStates(m.x.ctypes.data_as(_DOUBLE_P), m.n)
+                x[m.offset : m.offset + m.n] = m.x
+        return x
+
+    def evaluate(self, t: float, x: np.ndarray) -> None:
+        """Set time, states and inputs of every component for (t, x)."""
+        for m in self.members.values():
+            m.fmu.setTime(t)
+            if m.n:
+                m.x[:] = x[m.offset : m.offset + m.n]
+                m.fmu.setContinuousStates(m.x.ctypes.data_as(_DOUBLE_P), m.n)
+        for name in self.order:
+            m = self.members[name]
+            for s in self.stimuli[name]:
+                v = _stimulus_value(s, t, self.segment_start)
+                if v is not None:
+                    m.fmu.setReal([m.vr[s.variable]], [float(v)])
+            for c in self.incoming[name]:
+                src = self.members[c.start_component]
+                (v,) = src.fmu.getReal([src.vr[c.start_connector]])
+                m.fmu.setReal([m.vr[c.end_connector]], [v])
+
+    def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
+        self.evaluate(t, x)
+        dx = np.empty(self.n)
+        for m in self.members.values():
+            if m.n:
+                m.fmu.getDerivatives(m.dx.ctypes.data_as(_DOUBLE_P), m.n)
+                dx[m.offset : m.offset + m.n] = m.dx
+        return dx
+
+    def read(self, t: float, x: np.ndarray, names: list[tuple[str, str]]) -> list[float]:
+        self.evaluate(t, x)
+        return [self.members[c].fmu.getReal([self.members[c].vr[v]])[0] for c, v in names]
+
+
+def recorded_variables(scenario: Scenario) -> list[tuple[str, str]]:
+    """The (component, variable) pairs the scene records; all Real outputs if it names none."""
+    if scenario.record:
+        return list(scenario.record)
+    names = []
+    for comp in scenario.components:
+        md = read_model_description(str(comp.fmu_path))
+        names += [
+            (comp.name, v.name) for v in md.modelVariables if v.causality == "output" and v.type == "Real"
+        ]
+    return names
+
+
+def record_grid(scenario: Scenario, step: Fraction | None = None) -> np.ndarray:
+    """Times (s) from start to stop every `step` (default: record_interval, else macro_step)."""
+    h = step or scenario.record_interval or scenario.macro_step
+    n = int((scenario.stop_time - scenario.start_time) / h)
+    return np.array([float(scenario.start_time + i * h) for i in range(n + 1)])
+
+
+def break_points(scenario: Scenario) -> list[float]:
+    """Start, stimulus break points strictly inside the run, stop (s)."""
+    t0, t1 = float(scenario.start_time), float(scenario.stop_time)
+    inner = {float(t) for s in scenario.stimuli for t in s.times if t0 < t < t1}
+    return [t0, *sorted(inner), t1]
+
+
+def integrate(
+    scenario: Scenario,
+    grid: np.ndarray | None = None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    method: str = "Radau",
+) -> Trajectory:
+    """Integrate the scene monolithically through Model Exchange; values on `grid` (s).
+
+    Raises NoModelExchange if a component's FMU offers no ME interface,
+    RuntimeError if the integrator fails.
+    """
+    times = record_grid(scenario) if grid is None else np.asarray(grid, dtype=float)
+    names = recorded_variables(scenario)
+    scene = _Scene(scenario)
+    try:
+        x = scene.initial_state()
+        out = np.full((len(times), len(names)), np.nan)
+        bps = break_points(scenario)
+        for a, b in zip(bps[:-1], bps[1:], strict=True):
+            scene.segment_start = a
+            sol = solve_ivp(scene.rhs, (a, b), x, method=method, rtol=rtol, atol=atol, dense_output=True)
+            if not sol.success:
+                raise RuntimeError(
+                    f"{scenario.path}: reference integration failed on [{a}, {b}] s: {sol.message}"
+                )
+            last = b == bps[-1]
+            sel = np.nonzero((times >= a) & ((times <= b) if last else (times < b)))[0]
+            for i in sel:
+                out[i] = scene.read(times[i], sol.sol(times[i]), names)
+            x = sol.y[:, -1]
+    finally:
+        scene.close()
+    return Trajectory(np.array(times), {f"{c}.{v}": out[:, j] for j, (c, v) in enumerate(names)})
+
+
+def _file_hash(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def cache_key(scenario: Scenario, overrides: dict | None, settings: dict) -> str:
+    """Hash of the scenario file, the overrides, the settings and every FMU file."""
+    h = hashlib.sha256()
+    h.update(Path(scenario.path).read_bytes())
+    h.update(json.dumps(overrides or {}, sort_keys=True, default=str).encode())
+    h.update(json.dumps(settings, sort_keys=True, default=str).encode())
+    for comp in scenario.components:
+        h.update(comp.name.encode())
+        h.update(_file_hash(comp.fmu_path).encode())
+    return h.hexdigest()[:32]
+
+
+def reference(
+    scenario: Scenario,
+    overrides: dict | None = None,
+    grid_step: Fraction | None = None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    cache_dir: Path | None = CACHE_DIR,
+) -> Trajectory:
+    """The cached reference solution of a loaded scene (see `integrate`).
+
+    overrides: the overrides the scene was loaded with (part of the cache key).
+    grid_step: spacing (s) of the reference grid; default the scene's record interval.
+    cache_dir: None disables the cache.
+    """
+    grid = record_grid(scenario, grid_step)
+    settings = {"rtol": rtol, "atol": atol, "grid": [grid[0], grid[-1], len(grid)], "method": "Radau"}
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"{cache_key(scenario, overrides, settings)}.npz"
+        if path.exists():
+            data = np.load(path)
+            return Trajectory(data["__time__"], {k: data[k] for k in data.files if k != "__time__"})
+    traj = integrate(scenario, grid, rtol=rtol, atol=atol)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
+            np.savez(f, __time__=traj.time, **traj.values)
+        Path(f.name).replace(path)
+    return traj
