@@ -1,0 +1,151 @@
+"""Mathematical tests of the fixed-step solvers of fmus/solvers.
+
+Two ways in:
+- a small C driver (tests/c/solver_driver.c) compiled here with -Wall -Wextra -Werror, for the
+  dense LU against numpy, the plain-data memory and history restart, and the finite-difference
+  Jacobian against the analytic one;
+- the real FMUs through fmpy: observed orders of convergence on `nonlinear` (closed-form solution)
+  and the real-axis stability limits on `dahlquist` (y' = lambda y).
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SOLVERS = ROOT / "fmus" / "solvers"
+
+EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
+NAMES = {EULER: "euler", AB2: "ab2", AB3: "ab3", RK4: "rk4", SI_EULER: "si-euler", SI_MIDPOINT: "si-midpoint"}
+ORDERS = {EULER: 1, AB2: 2, AB3: 3, RK4: 4, SI_EULER: 1, SI_MIDPOINT: 2}
+
+
+# ---------------------------------------------------------------------------------------------
+# Mathematics
+
+
+def nonlinear_exact(
+    t: float, omega: float = 1.0, a: float = 1.0, x0: float = 1.0, y0: float = 0.0
+) -> np.ndarray:
+    """Exact (x, y) of fmus/nonlinear at time t (s): r' = -a r^3, theta' = omega (1 + t)."""
+    r0, theta0 = math.hypot(x0, y0), math.atan2(y0, x0)
+    r = r0 / math.sqrt(1.0 + 2.0 * a * r0 * r0 * t)
+    theta = theta0 + omega * (t + 0.5 * t * t)
+    return np.array([r * math.cos(theta), r * math.sin(theta)])
+
+
+def observed_order(steps: list[float], errors: list[float]) -> float:
+    """Least-squares slope of log(error) against log(step): the observed order of convergence."""
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+# ---------------------------------------------------------------------------------------------
+# C driver
+
+
+@pytest.fixture(scope="module")
+def driver(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The C driver, built warnings-clean against the solver sources."""
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.fail("gcc is required to build tests/c/solver_driver.c")
+    exe = tmp_path_factory.mktemp("solver_driver") / "solver_driver"
+    cmd = [
+        gcc,
+        "-O2",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        f"-I{SOLVERS}",
+        f"-I{ROOT / 'fmus' / 'fmi'}",
+        str(ROOT / "tests" / "c" / "solver_driver.c"),
+        str(SOLVERS / "solvers.c"),
+        str(SOLVERS / "lu.c"),
+        "-lm",
+        "-o",
+        str(exe),
+    ]
+    build = subprocess.run(cmd, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    return exe
+
+
+def run_driver(exe: Path, *args: str, stdin: str = "") -> list[str]:
+    """Run the driver and return its output lines."""
+    out = subprocess.run([str(exe), *args], input=stdin, capture_output=True, text=True, check=True)
+    return out.stdout.split("\n")[:-1]
+
+
+def driver_ode(
+    exe: Path, problem: str, kind: int, h: float, steps: int, param: float, jac: bool
+) -> np.ndarray:
+    """Final state after `steps` steps of h (s) from t = 0 on the driver's `problem`."""
+    lines = run_driver(exe, "ode", problem, str(kind), repr(h), str(steps), repr(param), "1" if jac else "0")
+    assert not lines[0].startswith("error"), lines[0]
+    return np.array([float(v) for v in lines if not v.startswith("evaluations")])
+
+
+def test_lu_solves_like_numpy(driver: Path) -> None:
+    rng = np.random.default_rng(7)
+    cases = [rng.normal(size=(n, n)) for n in (1, 2, 3, 5, 8)]
+    # A zero leading entry: fails without row exchanges.
+    cases.append(np.array([[0.0, 2.0, 1.0], [1.0, 1.0, 0.0], [3.0, 0.0, 1.0]]))
+    # Ill-conditioned but regular (Hilbert 5x5, condition about 5e5).
+    cases.append(1.0 / (np.arange(5)[:, None] + np.arange(5)[None, :] + 1.0))
+    for A in cases:
+        n = A.shape[0]
+        b = rng.normal(size=n)
+        text = " ".join(f"{v:.17g}" for v in [*A.ravel(), *b])
+        x = np.array([float(v) for v in run_driver(driver, "lu", str(n), stdin=text)])
+        expected = np.linalg.solve(A, b)
+        cond = np.linalg.cond(A)
+        assert np.allclose(x, expected, rtol=1e-13 * cond, atol=1e-13 * cond), (A, x, expected)
+
+
+def test_lu_reports_singular_matrices(driver: Path) -> None:
+    for A in (
+        np.zeros((2, 2)),
+        np.array([[1.0, 2.0], [2.0, 4.0]]),
+        np.array([[1.0, 0, 0], [0, 0, 0], [0, 0, 1]]),
+    ):
+        n = A.shape[0]
+        text = " ".join(f"{v:.17g}" for v in [*A.ravel(), *np.ones(n)])
+        assert run_driver(driver, "lu", str(n), stdin=text) == ["singular"]
+
+
+def test_memory_is_plain_data_and_h_change_restarts(driver: Path) -> None:
+    # Counts evaluations of f through the AB3 start-up, a 1e-14 relative change of h (carries on)
+    # and a real change (restarts); copies memory mid-run; singular I - hJ and unknown kind.
+    assert run_driver(driver, "restart") == ["ok"]
+
+
+@pytest.mark.parametrize("kind", [SI_EULER, SI_MIDPOINT])
+def test_finite_difference_jacobian_agrees_with_analytic(driver: Path, kind: int) -> None:
+    # 200 steps of 0.01 s: the method's error is about 1e-3; the two Jacobians differ by about
+    # sqrt(eps) relative, which moves the result by far less than that.
+    analytic = driver_ode(driver, "nonlinear", kind, 0.01, 200, 1.0, jac=True)
+    finite = driver_ode(driver, "nonlinear", kind, 0.01, 200, 1.0, jac=False)
+    error = np.linalg.norm(analytic - nonlinear_exact(2.0))
+    assert error > 1e-6  # the comparison below must be meaningful
+    assert np.linalg.norm(analytic - finite) < 1e-6 * error
+
+
+@pytest.mark.parametrize("kind", list(ORDERS))
+def test_driver_order_of_convergence(driver: Path, kind: int) -> None:
+    t_end, steps = 2.0, [20, 40, 80, 160]
+    hs = [t_end / s for s in steps]
+    errors = [
+        float(
+            np.linalg.norm(
+                driver_ode(driver, "nonlinear", kind, h, s, 1.0, jac=True) - nonlinear_exact(t_end)
+            )
+        )
+        for h, s in zip(hs, steps, strict=True)
+    ]
+    assert observed_order(hs, errors) == pytest.approx(ORDERS[kind], abs=0.2)
