@@ -1,0 +1,243 @@
+"""Worker processes of the parallel backend: start, one synchronisation per macro step, isolation.
+
+Each worker runs a `Task` (one or more components) in its own process.  Per macro step the
+master writes the step number into shared memory and releases each worker's `go` semaphore;
+each worker steps its components, publishes its outputs (the task writes them into shared
+arrays) and releases its `done` semaphore.  That pair of semaphores is the one
+synchronisation point per step: measured on 2 cores it costs less than a pipe round trip,
+a `multiprocessing.Barrier` or spinning on a shared counter (see benchmarks/parallel.py).
+
+Isolation: a worker that dies (segfault, abort), overruns the step timeout (hang) or reports
+an exception (e.g. an FMU returning fmi2Error) makes `WorkerPool.step` raise `WorkerFailure`
+naming the component, the macro step and the cause.  `close()` always leaves no process
+behind: workers get SIGKILL if they do not stop in time, and they die with the master
+(PR_SET_PDEATHSIG) should the master itself be killed.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import multiprocessing as mp
+import signal
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
+
+from master.backends.shm import SharedArrays
+
+STOP = -1  # command: leave the loop
+MSG_BYTES = 2048  # room for one error message per worker
+POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
+
+IDLE, RUNNING, FAILED = 0, 1, 2  # worker states in shared memory
+
+
+class Task(Protocol):
+    """What a worker runs: built in the worker process, then stepped once per macro step."""
+
+    components: Sequence[str]  # names, for error messages
+
+    def setup(self, where: np.ndarray) -> None:
+        """Instantiate and initialise; store the index of the component being worked on in where[0]."""
+
+    def step(self, n: int, where: np.ndarray) -> None:
+        """Run macro step n (all substeps of all components); store the component index in where[0]."""
+
+    def close(self) -> None:
+        """Free what setup() made."""
+
+
+class WorkerFailure(RuntimeError):
+    """A worker failed: `component` (name or None), macro step `step` (-1: set-up), `cause`."""
+
+    def __init__(self, component: str | None, step: int, cause: str):
+        self.component = component
+        self.step = step
+        self.cause = cause
+        where = f"component '{component}'" if component else "a worker"
+        super().__init__(f"{where}: {cause}")
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to SIGKILL this process when the process that started it dies."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass  # not Linux: the master's close() still ends the workers
+
+
+def _worker_main(index: int, factory: Callable[[], Task], control: SharedArrays, go, done) -> None:
+    """Body of worker `index`: build the task, then step on command until STOP."""
+    _die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the master's to handle
+    try:
+        import faulthandler
+
+        faulthandler.disable()  # a crash is reported by the master, not as a traceback dump
+    except ImportError:
+        pass
+    state = control["state"][index : index + 1]
+    where = control["where"][index : index + 1]
+    msg = control["msg"][index]
+    cmd = control["cmd"]
+    task = None
+    try:
+        state[0] = RUNNING
+        task = factory()
+        task.setup(where)
+        state[0] = IDLE
+        done.release()
+        while True:
+            go.acquire()
+            n = int(cmd[0])
+            if n == STOP:
+                break
+            state[0] = RUNNING
+            task.step(n, where)
+            state[0] = IDLE
+            done.release()
+    except BaseException as e:  # report, then end: the master decides what happens next
+        text = f"{type(e).__name__}: {e}" if str(e) else "".join(traceback.format_exception_only(e)).strip()
+        raw = text.encode("utf-8", "replace")[: MSG_BYTES - 1]
+        msg[: len(raw)] = np.frombuffer(raw, dtype=np.uint8)
+        msg[len(raw)] = 0
+        state[0] = FAILED
+        done.release()
+    finally:
+        if task is not None:
+            try:
+                task.close()
+            except Exception:
+                pass
+
+
+def _signal_name(exitcode: int) -> str:
+    if exitcode < 0:
+        try:
+            return f"killed by signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exited with code {exitcode}"
+
+
+class WorkerPool:
+    """Worker processes, each running one task, stepped in lock-step by the master.
+
+    tasks: (component names, factory) per worker; the factory runs in the worker process and
+    must be picklable under the spawn/forkserver start methods.  Times are in seconds.
+    """
+
+    def __init__(
+        self,
+        tasks: Sequence[tuple[Sequence[str], Callable[[], Task]]],
+        start_method: str = "fork",
+        step_timeout: float = 10.0,
+        setup_timeout: float = 60.0,
+    ):
+        self.names = [list(names) for names, _ in tasks]
+        self.step_timeout = step_timeout
+        self.setup_timeout = setup_timeout
+        ctx = mp.get_context(start_method)
+        w = len(tasks)
+        self.control = SharedArrays(
+            {
+                "cmd": ((1,), "int64"),
+                "state": ((w,), "int64"),
+                "where": ((w,), "int64"),
+                "msg": ((w, MSG_BYTES), "uint8"),
+            }
+        )
+        self.go = [ctx.Semaphore(0) for _ in range(w)]
+        self.done = [ctx.Semaphore(0) for _ in range(w)]
+        self.procs: list = []
+        self.closed = False
+        try:
+            for i, (_, factory) in enumerate(tasks):
+                p = ctx.Process(
+                    target=_worker_main,
+                    args=(i, factory, self.control, self.go[i], self.done[i]),
+                    name=f"master-worker-{'+'.join(self.names[i])}",
+                    daemon=True,
+                )
+                p.start()
+                self.procs.append(p)
+            self._wait_all(-1, self.setup_timeout)
+        except BaseException:
+            self.close()
+            raise
+
+    def step(self, n: int) -> None:
+        """Run macro step n in all workers and wait until all have published their outputs."""
+        self.control["cmd"][0] = n
+        for g in self.go:
+            g.release()
+        self._wait_all(n, self.step_timeout)
+
+    def _wait_all(self, n: int, timeout: float) -> None:
+        """Collect every worker's `done` for macro step n (-1: set-up); raise WorkerFailure on trouble."""
+        deadline = time.monotonic() + timeout
+        poll = min(POLL_S, timeout)
+        for i, sem in enumerate(self.done):
+            while not sem.acquire(timeout=poll):
+                self._check_alive(n)
+                if time.monotonic() > deadline:
+                    self.procs[i].kill()  # a hung FMU never returns to read the stop command
+                    what = "set-up" if n < 0 else "macro step"
+                    raise self._failure(
+                        i, n, f"hang: {what} not finished within the timeout of {timeout:g} s"
+                    )
+            self._check(i, n)
+
+    def _check_alive(self, n: int) -> None:
+        for j, p in enumerate(self.procs):
+            code = p.exitcode
+            if code is not None:
+                self._check(j, n)  # it may have reported an exception before ending
+                raise self._failure(j, n, f"worker process {_signal_name(code)}")
+
+    def _check(self, i: int, n: int) -> None:
+        if self.control["state"][i] == FAILED:
+            raise self._failure(i, n, self._message(i))
+
+    def _message(self, i: int) -> str:
+        raw = bytes(self.control["msg"][i])
+        return raw.split(b"\0", 1)[0].decode("utf-8", "replace")
+
+    def _component(self, i: int) -> str | None:
+        names = self.names[i]
+        k = int(self.control["where"][i])
+        return names[k] if 0 <= k < len(names) else (names[0] if len(names) == 1 else None)
+
+    def _failure(self, i: int, n: int, cause: str) -> WorkerFailure:
+        return WorkerFailure(self._component(i), n, cause)
+
+    def close(self) -> None:
+        """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory."""
+        if self.closed:
+            return
+        self.closed = True
+        if "cmd" in self.control.arrays:
+            self.control["cmd"][0] = STOP
+        for g in self.go:
+            g.release()
+        deadline = time.monotonic() + 2.0
+        for p in self.procs:
+            p.join(max(0.0, deadline - time.monotonic()))
+        for p in self.procs:
+            if p.is_alive():
+                p.kill()
+                p.join(5.0)
+        for p in self.procs:
+            if p.exitcode is not None:
+                p.close()
+        self.control.unlink()
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
