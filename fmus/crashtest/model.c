@@ -6,16 +6,23 @@
  *   0 normal, 1 segmentation fault, 2 hang (busy loop), 3 abort(), 4 return an error.
  * Every derivative evaluation burns `cost_us` microseconds of CPU, so that a scene of
  * crashtest components has a known, adjustable cost per step.
+ * With `exclusive` set it behaves like a legacy FMU that holds a process-wide resource:
+ * only one exclusive instance per process may initialise (the claim is an environment
+ * variable holding the process id, so a forked child starts free).
  */
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "model.h"
 
-enum { VR_SOLVER, VR_INTERNAL_STEP, VR_MODE, VR_AT_TIME, VR_COST_US, VR_U, VR_Y, VR_DER_Y, N_VARIABLES };
+enum { VR_SOLVER, VR_INTERNAL_STEP, VR_MODE, VR_AT_TIME, VR_COST_US, VR_EXCLUSIVE, VR_U, VR_Y, VR_DER_Y, N_VARIABLES };
 
 enum { R_AT_TIME = R_MODEL_START, R_COST_US, R_U, R_Y, R_DER_Y, N_REALS };
 enum { I_MODE = I_MODEL_START, N_INTEGERS };
+enum { B_EXCLUSIVE, N_BOOLEANS };
 
 enum { MODE_NORMAL, MODE_SEGFAULT, MODE_HANG, MODE_ABORT, MODE_ERROR };
 
@@ -28,6 +35,8 @@ static const Variable VARIABLES[N_VARIABLES] = {
      "time from which the derivative misbehaves", NO_STATE, NULL},
     {"cost_us", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_COST_US, 0.0, NULL, 0, INFINITY, "us",
      "CPU time burnt by each derivative evaluation", NO_STATE, NULL},
+    {"exclusive", T_BOOLEAN, C_PARAMETER, V_FIXED, I_EXACT, B_EXCLUSIVE, 0, NULL, 0, 1, NULL,
+     "claim a process-wide resource: a second exclusive instance in the same process fails", NO_STATE, NULL},
     {"u", T_REAL, C_INPUT, V_CONTINUOUS, I_DEFAULT, R_U, 0.0, NULL, -INFINITY, INFINITY, NULL,
      "input", NO_STATE, NULL},
     {"y", T_REAL, C_OUTPUT, V_CONTINUOUS, I_EXACT, R_Y, 1.0, NULL, -INFINITY, INFINITY, NULL,
@@ -51,6 +60,21 @@ static void burn(double us) {
     const double end = now_us() + us;
     while (now_us() < end) {
     }
+}
+
+#define CLAIM "CRASHTEST_EXCLUSIVE_PID"
+
+static ModelStatus initialize(Instance *inst) {
+    if (!model_booleans(inst)[B_EXCLUSIVE]) return MODEL_OK;
+    char pid[32];
+    snprintf(pid, sizeof pid, "%ld", (long)getpid());
+    const char *holder = getenv(CLAIM);
+    if (holder != NULL && strcmp(holder, pid) == 0) {
+        model_log(inst, "logError", "crashtest: another exclusive instance already lives in process %s", pid);
+        return MODEL_ERROR;
+    }
+    setenv(CLAIM, pid, 1);
+    return MODEL_OK;
 }
 
 static ModelStatus derivatives(Instance *inst, double t, const double *x, double *dx) {
@@ -98,12 +122,12 @@ const ModelDef MODEL = {
     .n_variables = N_VARIABLES,
     .n_reals = N_REALS,
     .n_integers = N_INTEGERS,
-    .n_booleans = 0,
+    .n_booleans = N_BOOLEANS,
     .n_strings = 0,
     .n_states = 1,
     .state_slots = STATE_SLOTS,
     .derivative_slots = DERIVATIVE_SLOTS,
-    .initialize = NULL,
+    .initialize = initialize,
     .derivatives = derivatives,
     .jacobian = jacobian,
     .outputs = NULL,
