@@ -51,3 +51,46 @@ SET_A = TwoMass()
 SET_A_Z0 = np.array([1.0, 0.0, 0.0, 0.0])
 SET_A_X1_10 = -1.0849853810160e-3
 SET_A_V1_10 = -2.6931070586924e-3
+
+
+def split_scheme(
+    p: TwoMass = SET_A,
+    order: int = 0,
+    solvers: tuple[int, int] = (4, 4),
+    step_ratios: tuple[int, int] = (1, 1),
+    substeps: tuple[int, int] = (1, 1),
+    inputs: str = "hold",
+):
+    """The benchmark's co-simulation split as a linear scheme (see master.evidence.linear).
+
+    mass1: states (x1, v1), input F, outputs x1, v1.
+    mass2: states (x2, v2), inputs x1, v1, output F = cc (x2 - x1) + dc (v2 - v1) (feedthrough).
+    """
+    from master.evidence.linear import LinearComponent, LinearScheme
+
+    m1 = LinearComponent(
+        "mass1",
+        a=np.array([[0.0, 1.0], [-p.c1 / p.m1, -p.d1 / p.m1]]),
+        b=np.array([[0.0], [1.0 / p.m1]]),
+        c=np.eye(2),
+        d=np.zeros((2, 1)),
+        inputs=("F",),
+        outputs=("x", "v"),
+        solver=solvers[0],
+        step_ratio=step_ratios[0],
+        substeps=substeps[0],
+    )
+    m2 = LinearComponent(
+        "mass2",
+        a=np.array([[0.0, 1.0], [-(p.c2 + p.cc) / p.m2, -(p.d2 + p.dc) / p.m2]]),
+        b=np.array([[0.0, 0.0], [p.cc / p.m2, p.dc / p.m2]]),
+        c=np.array([[p.cc, p.dc]]),
+        d=np.array([[-p.cc, -p.dc]]),
+        inputs=("x_in", "v_in"),
+        outputs=("F",),
+        solver=solvers[1],
+        step_ratio=step_ratios[1],
+        substeps=substeps[1],
+    )
+    conns = (("mass1", "x", "mass2", "x_in"), ("mass1", "v", "mass2", "v_in"), ("mass2", "F", "mass1", "F"))
+    return LinearScheme((m1, m2), conns, order=order, inputs=inputs)

@@ -1,0 +1,213 @@
+"""Linear stability analysis of a multirate Jacobi co-simulation.
+
+Each component is linear, x' = A x + B u, y = C x + D u, integrated by one of the shared
+core's fixed-step solvers (fmus/solvers, same formulas and same history handling: the
+multistep history carries on across communication steps).  Coupling signals are sampled at
+macro-step points t_n and extrapolated by a polynomial of order k through y(t_n), ...,
+y(t_{n-k}).  A component with step ratio r makes r communication steps of H / r per macro
+step; its inputs are the polynomial evaluated at the start of each communication step and
+held over it ("hold"), or evaluated at every solver stage time ("polynomial").
+
+The scheme is linear in its extended state z = (states, solver histories, coupling history),
+so one macro step is z_(n+1) = G(H) z_n; the co-simulation is stable iff rho(G) < 1.
+G is built column by column by stepping unit vectors through the scheme.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
+
+
+@dataclass(frozen=True)
+class LinearComponent:
+    """One linear component: x' = a x + b u, y = c x + d u, solved by `solver` (SolverKind value).
+
+    substeps: solver steps per communication step (communication step / internal_step).
+    """
+
+    name: str
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    d: np.ndarray
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    solver: int = RK4
+    step_ratio: int = 1
+    substeps: int = 1
+
+
+@dataclass(frozen=True)
+class LinearScheme:
+    """Components, connections (producer, output, consumer, input), extrapolation order, input mode."""
+
+    components: tuple[LinearComponent, ...]
+    connections: tuple[tuple[str, str, str, str], ...]
+    order: int = 0
+    inputs: str = "hold"  # "hold" or "polynomial"
+
+
+def extrapolation_weights(order: int, s: float) -> np.ndarray:
+    """Lagrange weights of samples at t_n, t_(n-1), ..., t_(n-order) for the value at t_n + s H."""
+    nodes = -np.arange(order + 1, dtype=float)
+    w = np.ones(order + 1)
+    for j in range(order + 1):
+        for m in range(order + 1):
+            if m != j:
+                w[j] *= (s - nodes[m]) / (nodes[j] - nodes[m])
+    return w
+
+
+class _Layout:
+    """Index ranges of the extended state z."""
+
+    def __init__(self, scheme: LinearScheme) -> None:
+        self.slices: dict[str, tuple[slice, slice, slice, slice]] = {}
+        i = 0
+        for comp in scheme.components:
+            n = comp.a.shape[0]
+            self.slices[comp.name] = tuple(slice(i + j * n, i + (j + 1) * n) for j in range(4))
+            i += 4 * n  # x, f_(n-1), f_(n-2), Delta_(n-1)
+        self.signals = sorted({(p, o) for p, o, _, _ in scheme.connections})
+        self.hist = i  # then `order` past samples of every signal, newest first
+        self.size = i + scheme.order * len(self.signals)
+
+
+def _outputs(scheme: LinearScheme, xs: dict[str, np.ndarray]) -> dict[tuple[str, str], float]:
+    """All outputs at a macro point with exact inputs (feedthrough resolved by repeated passes)."""
+    y = {(c.name, o): 0.0 for c in scheme.components for o in c.outputs}
+    for _ in range(len(scheme.components) + 1):  # no algebraic loop: a DAG settles in len(comps) passes
+        for c in scheme.components:
+            u = np.array([_input_value(scheme, c, i, y) for i in c.inputs])
+            yc = c.c @ xs[c.name] + (c.d @ u if len(u) else 0.0)
+            for k, o in enumerate(c.outputs):
+                y[(c.name, o)] = float(yc[k])
+    return y
+
+
+def _input_value(scheme: LinearScheme, comp: LinearComponent, name: str, y: dict) -> float:
+    d = _driver(scheme, comp.name, name)
+    return 0.0 if d is None else y[d]  # undriven: the linearisation is about its operating value
+
+
+def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] | None:
+    """The (producer, output) driving input `name` of `consumer`, None if undriven."""
+    return next(((p, o) for p, o, c, i in scheme.connections if c == consumer and i == name), None)
+
+
+def _input_function(k: int, samples: dict, drivers: list, s0: float, ds: float, s_hold: float | None):
+    """u(theta) over one solver step starting at s0 macro steps, theta in [0, 1] of the step."""
+
+    def u_of_t(theta: float) -> np.ndarray:
+        w = extrapolation_weights(k, s_hold if s_hold is not None else s0 + theta * ds)
+        return np.array([0.0 if d is None else float(w @ samples[d]) for d in drivers])
+
+    return u_of_t
+
+
+def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> None:
+    """One step of the component's solver in place (x, histories), u_of_t(theta) input at t + theta h."""
+
+    def f(xv, theta):
+        u = u_of_t(theta)
+        return comp.a @ xv + (comp.b @ u if len(u) else 0.0)
+
+    fn = f(x, 0.0)
+    kind = comp.solver
+    if kind == EULER:
+        x += h * fn
+    elif kind == AB2:
+        x += h * (3.0 * fn - f1) / 2.0
+    elif kind == AB3:
+        x += h * (23.0 * fn - 16.0 * f1 + 5.0 * f2) / 12.0
+    elif kind == RK4:
+        k2 = f(x + 0.5 * h * fn, 0.5)
+        k3 = f(x + 0.5 * h * k2, 0.5)
+        k4 = f(x + h * k3, 1.0)
+        x += h / 6.0 * (fn + 2.0 * k2 + 2.0 * k3 + k4)
+    elif kind in (SI_EULER, SI_MIDPOINT):
+        m = np.eye(len(x)) - h * comp.a
+        if kind == SI_EULER:
+            d_new = np.linalg.solve(m, h * fn)
+        else:
+            d_new = delta + 2.0 * np.linalg.solve(m, h * fn - delta)
+        delta[:] = d_new
+        x += d_new
+    else:
+        raise ValueError(f"component {comp.name!r}: unknown solver {kind}")
+    if kind not in (SI_EULER, SI_MIDPOINT):
+        delta[:] = 0.0  # unused memory must not persist (it would add an eigenvalue 1 to G)
+    f2[:] = f1
+    f1[:] = fn
+
+
+def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
+    """One Jacobi macro step of size big_h (s) applied to the extended state z."""
+    lay = _Layout(scheme)
+    z = np.array(z, dtype=float)
+    xs = {c.name: z[lay.slices[c.name][0]] for c in scheme.components}
+    y_now = _outputs(scheme, xs)
+    k = scheme.order
+    samples = {}
+    for s_idx, sig in enumerate(lay.signals):
+        past = [z[lay.hist + j * len(lay.signals) + s_idx] for j in range(k)]
+        samples[sig] = np.array([y_now[sig], *past])
+    out = z.copy()
+    for c in scheme.components:
+        sx, s1, s2, sd = lay.slices[c.name]
+        x, f1, f2, delta = out[sx], out[s1], out[s2], out[sd]  # views into out
+        drivers = [_driver(scheme, c.name, name) for name in c.inputs]
+        h_comm = big_h / c.step_ratio
+        h = h_comm / c.substeps
+        for j in range(c.step_ratio):
+            for m in range(c.substeps):
+                s0 = (j * h_comm + m * h) / big_h  # solver step start, in macro steps
+
+                s_hold = j / c.step_ratio if scheme.inputs == "hold" else None
+                u_of_t = _input_function(k, samples, drivers, s0, h / big_h, s_hold)
+                _solver_step(c, h, x, f1, f2, delta, u_of_t)
+    for s_idx, sig in enumerate(lay.signals):
+        hist = [y_now[sig]] + [z[lay.hist + j * len(lay.signals) + s_idx] for j in range(k - 1)]
+        for j in range(k):
+            out[lay.hist + j * len(lay.signals) + s_idx] = hist[j]
+    return out
+
+
+def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:
+    """G(H): the macro-step map on the extended state."""
+    n = _Layout(scheme).size
+    return np.column_stack([macro_step(scheme, e, big_h) for e in np.eye(n)])
+
+
+def spectral_radius(scheme: LinearScheme, big_h: float) -> float:
+    """rho(G(H)); the co-simulation is asymptotically stable iff it is below 1."""
+    return float(np.max(np.abs(np.linalg.eigvals(step_matrix(scheme, big_h)))))
+
+
+def largest_stable_step(scheme: LinearScheme, h_min: float, h_max: float, rel_tol: float = 1e-3) -> float:
+    """Largest H (s) in [h_min, h_max] below which rho(G) < 1, scanning up then bisecting.
+
+    Returns h_max if the scheme is stable on the whole scan, raises ValueError if h_min is unstable.
+    """
+    if spectral_radius(scheme, h_min) >= 1.0:
+        raise ValueError(f"unstable already at the smallest step {h_min} s")
+    grid = np.geomspace(h_min, h_max, 60)
+    lo = h_min
+    for h in grid[1:]:
+        if spectral_radius(scheme, h) >= 1.0:
+            hi = h
+            break
+        lo = h
+    else:
+        return h_max
+    while hi - lo > rel_tol * lo:
+        mid = 0.5 * (lo + hi)
+        if spectral_radius(scheme, mid) < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return lo

@@ -1,0 +1,64 @@
+"""The linear co-simulation model against mathematics: solver stability limits, exact solution,
+convergence order of polynomial extrapolation."""
+
+import numpy as np
+import pytest
+
+from master.evidence import linear
+from master.evidence.linear import LinearComponent, LinearScheme, largest_stable_step, step_matrix
+from master.evidence.oscillator import SET_A, SET_A_V1_10, SET_A_X1_10, SET_A_Z0, split_scheme
+
+
+def test_oscillator_exact_solution_matches_published_values():
+    z = SET_A.exact(10.0, SET_A_Z0)[0]
+    assert z[0] == pytest.approx(SET_A_X1_10, rel=1e-12)
+    assert z[1] == pytest.approx(SET_A_V1_10, rel=1e-12)
+
+
+def _dahlquist(solver: int, lam: float = -1.0) -> LinearScheme:
+    c = LinearComponent(
+        "d", np.array([[lam]]), np.zeros((1, 0)), np.eye(1), np.zeros((1, 0)), (), ("x",), solver=solver
+    )
+    return LinearScheme((c,), ())
+
+
+@pytest.mark.parametrize(
+    "solver, limit",
+    [(linear.EULER, 2.0), (linear.AB2, 1.0), (linear.AB3, 6.0 / 11.0), (linear.RK4, 2.785)],
+)
+def test_solver_stability_limits_on_negative_real_axis(solver, limit):
+    h = largest_stable_step(_dahlquist(solver), 1e-3, 10.0, rel_tol=1e-5)
+    assert h == pytest.approx(limit, rel=1e-3)
+
+
+@pytest.mark.parametrize("solver", [linear.SI_EULER, linear.SI_MIDPOINT])
+def test_semi_implicit_solvers_stable_far_past_explicit_limit(solver):
+    g = step_matrix(_dahlquist(solver, lam=-1e4), 1.0)  # z = -1e4
+    assert np.max(np.abs(np.linalg.eigvals(g))) < 1.0
+
+
+def _outputs(z):
+    return {("mass1", "x"): z[0], ("mass1", "v"): z[1], ("mass2", "F"): (z[2] - z[0]) + (z[3] - z[1])}
+
+
+def _run(scheme, n_steps, t_end):
+    """x1(t_end) of the linear scheme started on the exact solution (history from exact past)."""
+    h = t_end / n_steps
+    g = step_matrix(scheme, h)
+    lay = linear._Layout(scheme)
+    z = np.zeros(lay.size)
+    z[0] = 1.0
+    for j in range(scheme.order):
+        y = _outputs(SET_A.exact(-(j + 1) * h, SET_A_Z0)[0])
+        for s, sig in enumerate(lay.signals):
+            z[lay.hist + j * len(lay.signals) + s] = y[sig]
+    return (np.linalg.matrix_power(g, n_steps) @ z)[0]
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 3])
+def test_polynomial_extrapolation_converges_with_order_k_plus_1(order):
+    errs = [
+        abs(_run(split_scheme(order=order, inputs="polynomial"), n, 10.0) - SET_A_X1_10) for n in (200, 400)
+    ]
+    observed = np.log2(errs[0] / errs[1])
+    assert observed == pytest.approx(order + 1, abs=0.2)
