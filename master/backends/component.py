@@ -1,0 +1,220 @@
+"""One component's work in the multirate algorithm, written once for every backend.
+
+`ComponentRunner.macro_step(n)` advances one FMU through macro step n: at each of its
+communication points it evaluates its coupling polynomials from the source histories, sets
+its inputs (one vectorised set), steps, reads its outputs (one vectorised get) and stores
+them in its own history. Serial and parallel backends both call exactly this code, so they
+produce bit-identical results. Times are in seconds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from master.coupling import History, stimulus_value, weights
+from master.fmu import Fmu, FmuError
+from master.scenario.model import Component, Scenario
+from master.schedule import Link, Plan, PlanComponent
+
+
+class SimulationError(Exception):
+    """A run stopped: names the component, the variable or cause, and the simulation time (s)."""
+
+    def __init__(self, message: str, component: str, time: float, variable: str | None = None):
+        super().__init__(message)
+        self.component = component
+        self.variable = variable
+        self.time = time
+
+
+UNSTABLE_HINT = (
+    "hint: the coupled system is unstable at these settings; try a smaller macro step, "
+    "a semi-implicit solver in the stiff component, or a lower extrapolation order"
+)
+
+
+def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
+    """Real variables of `name` read at each communication point: coupled outputs, then recorded."""
+    out: list[str] = []
+    for lk in plan.links:
+        if lk.source == name:
+            out.extend(o for o in lk.outputs if o not in out)
+    for comp, var in plan.record:
+        if comp == name and var not in out and variables[var].type == "Real":
+            out.append(var)
+    return out
+
+
+class _InLink:
+    """A link as the consumer evaluates it: source history columns -> input port slots."""
+
+    def __init__(self, link: Link, columns: np.ndarray, slots: np.ndarray, step_s: float):
+        self.link = link
+        self.columns = columns
+        self.slots = slots
+        self.value = np.zeros(len(slots))
+        self.source_step = step_s  # h of the source (s)
+
+
+class ComponentRunner:
+    """Runs one FMU through the plan; owns its output history."""
+
+    def __init__(self, plan: Plan, pc: PlanComponent, fmu: Fmu, out_names: dict[str, list[str]]):
+        self.plan = plan
+        self.pc = pc
+        self.fmu = fmu
+        self.name = pc.name
+        self.clock = pc.clock
+        self.h = float(pc.step)
+        self.out = fmu.real_port(out_names[pc.name])
+        links = plan.links_into(pc.name)
+        stimuli = [s for s in plan.stimuli if s.component == pc.name]
+        in_names = [i for lk in links for i in lk.inputs] + [s.variable for s in stimuli]
+        self.inp = fmu.real_port(in_names)
+        self.links: list[_InLink] = []
+        pos = 0
+        for lk in links:
+            src_names = out_names[lk.source]
+            cols = np.array([src_names.index(o) for o in lk.outputs], dtype=np.intp)
+            slots = np.arange(pos, pos + len(lk.inputs), dtype=np.intp)
+            pos += len(lk.inputs)
+            self.links.append(_InLink(lk, cols, slots, float(plan.component(lk.source).step)))
+        self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
+        max_order = max([lk.order for lk in links], default=0)
+        self.history = History(self.out.n, pc.ratio + max_order + 2)
+        self.fmu_time = 0.0  # wall time inside FMI calls (s)
+        self.steps = 0
+        # (column in the result row, column in the history) / (column, variable name)
+        self.record_real: list[tuple[int, int]] = []
+        self.record_other: list[tuple[int, str]] = []
+        for i, (c, v) in enumerate(plan.record):
+            if c == pc.name and v in self.out.names:
+                self.record_real.append((1 + i, self.out.names.index(v)))
+            elif c == pc.name:
+                self.record_other.append((1 + i, v))
+
+    # -- inputs ---------------------------------------------------------------------------------
+    def _fill_inputs(self, n: int, j: int, histories: dict[str, History]) -> None:
+        """Input port values for communication point j (in macro step n)."""
+        vals = self.inp.values
+        kc = self.pc.ratio
+        for il in self.links:
+            lk = il.link
+            j_end, p = lk.window(n, j)
+            w = weights(p, j * lk.k_source - j_end * kc, kc)
+            histories[lk.source].combine(j_end, w, il.columns, il.value)
+            vals[il.slots] = il.value
+        if self.stimuli:
+            t = self.clock.time(j)
+            for slot, s, start in self.stimuli:
+                vals[slot] = stimulus_value(s, t, start)
+
+    def _set_derivatives(self, n: int, j: int, histories: dict[str, History]) -> None:
+        """Hand the polynomials' derivatives at the step start to the FMU (canInterpolateInputs)."""
+        kc = self.pc.ratio
+        for il in self.links:
+            lk = il.link
+            j_end, p = lk.window(n, j)
+            for d in range(1, min(p, self.pc.derivative_order) + 1):
+                w = weights(p, j * lk.k_source - j_end * kc, kc, d)
+                histories[lk.source].combine(j_end, w, il.columns, il.value)
+                il.value /= il.source_step**d
+                self.fmu.set_input_derivatives(_SubPort(self.inp, il.slots), d, il.value)
+
+    # -- stepping -------------------------------------------------------------------------------
+    def initial_sweep(self, histories: dict[str, History]) -> None:
+        """In initialisation mode: set inputs from the sources' current outputs, read own outputs."""
+        t0 = perf()
+        try:
+            self._fill_initial(histories)
+            self.inp.set()
+            self.out.get()
+        except FmuError as e:
+            raise SimulationError(f"{e} at t={self.clock.time(0)}", self.name, self.clock.time(0)) from e
+        finally:
+            self.fmu_time += perf() - t0
+        self.history.push(0, self.out.values)
+
+    def _fill_initial(self, histories: dict[str, History]) -> None:
+        vals = self.inp.values
+        for il in self.links:
+            h = histories[il.link.source]
+            vals[il.slots] = h.buf[0, il.columns]
+        t = self.clock.time(0)
+        for slot, s, start in self.stimuli:
+            vals[slot] = stimulus_value(s, t, start)
+
+    def macro_step(self, n: int, histories: dict[str, History]) -> None:
+        """Advance through macro step n: `ratio` communication steps of h each."""
+        k = self.pc.ratio
+        h = self.h
+        fmu = self.fmu
+        for j in range(n * k, n * k + k):
+            t = self.clock.time(j)
+            self._fill_inputs(n, j, histories)
+            t0 = perf()
+            try:
+                self.inp.set()
+                if self.pc.interpolate_inputs:
+                    self._set_derivatives(n, j, histories)
+                fmu.do_step(t, h)
+                vals = self.out.get()
+            except FmuError as e:
+                raise SimulationError(
+                    f"{e} in the step from t={t} to t={self.clock.time(j + 1)}", self.name, t
+                ) from e
+            finally:
+                self.fmu_time += perf() - t0
+            self.steps += 1
+            if not np.isfinite(vals).all():
+                bad = self.out.names[int(np.flatnonzero(~np.isfinite(vals))[0])]
+                t1 = self.clock.time(j + 1)
+                raise SimulationError(
+                    f"unstable: {self.name}.{bad} at t={t1} ({UNSTABLE_HINT})", self.name, t1, bad
+                )
+            self.history.push(j + 1, vals)
+
+    def record(self, n: int, row: np.ndarray) -> None:
+        """Fill this component's recorded values at the end of macro step n into its columns of `row`."""
+        vals = self.history.buf[((n + 1) * self.pc.ratio) % self.history.capacity]
+        for i, col in self.record_real:
+            row[i] = vals[col]
+        for i, var in self.record_other:
+            t0 = perf()
+            try:
+                row[i] = self.fmu.get_value(var)
+            except FmuError as e:
+                raise SimulationError(str(e), self.name, math.nan, var) from e
+            finally:
+                self.fmu_time += perf() - t0
+
+
+class _SubPort:
+    """Some slots of a RealPort, for fmi2SetRealInputDerivatives."""
+
+    def __init__(self, port, slots: np.ndarray):
+        self.vrs = [port.vrs[int(i)] for i in slots]
+        self.n = len(self.vrs)
+
+
+def open_fmu(sc: Scenario, comp: Component) -> Fmu:
+    """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode."""
+    fmu = Fmu(comp.fmu_path, comp.name)
+    try:
+        fmu.set_values(dict(comp.parameters))
+        fmu.enter_initialization(float(sc.start_time), float(sc.stop_time))
+    except BaseException:
+        fmu.close()
+        raise
+    return fmu
+
+
+def _start_value(fmu: Fmu, var: str) -> float:
+    s = fmu.variables[var].start
+    return float(s) if s is not None else 0.0
+
+
+perf = time.perf_counter

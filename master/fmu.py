@@ -1,0 +1,358 @@
+"""One Co-Simulation FMU (FMI 2.0 or 3.0) behind a small interface, with fmpy underneath.
+
+The master only ever talks to `Fmu`: it hides whether the FMU is FMI 2 or 3, prepares
+value-reference vectors once (`RealPort`), and turns every failing call into an `FmuError`
+that names the instance, the FMI function and the FMU's last log message.
+Times are in seconds.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import stat
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+from fmpy.fmi1 import FMICallException
+from fmpy.model_description import ModelDescription, read_model_description
+
+REAL_TYPES = ("Real", "Float64", "Float32")
+INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
+
+
+class FmuError(Exception):
+    """A failing FMU: bad file, bad model description or a failing FMI call."""
+
+
+@dataclass(frozen=True)
+class VariableInfo:
+    """What the master needs to know about one scalar variable."""
+
+    name: str
+    vr: int
+    type: str  # "Real", "Integer", "Boolean", "String" or "Enumeration" (FMI 3 types mapped)
+    causality: str
+    variability: str
+    initial: str | None
+    start: str | None
+    unit: str | None
+    description: str | None
+
+
+def _plain_type(t: str) -> str:
+    if t in REAL_TYPES:
+        return "Real"
+    if t in INTEGER_TYPES:
+        return "Integer"
+    return t
+
+
+def read_description(path: Path) -> ModelDescription:
+    """Read and check the model description of a Co-Simulation FMU (FMI 2.0 or 3.0)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FmuError(f"{path}: FMU file not found")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"{path}: not an FMU (not a ZIP archive)")
+    try:
+        md = read_model_description(str(path), validate=True)
+    except Exception as e:  # fmpy raises plain Exceptions with the schema error
+        raise FmuError(f"{path}: invalid modelDescription.xml: {e}") from e
+    if md.fmiVersion not in ("2.0",) and not md.fmiVersion.startswith("3."):
+        raise FmuError(f"{path}: FMI version {md.fmiVersion} is not supported (2.0 or 3.x needed)")
+    if md.coSimulation is None:
+        raise FmuError(f"{path}: model '{md.modelName}' does not support Co-Simulation")
+    return md
+
+
+def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
+    """Scalar variables of a model description by name (arrays of FMI 3 are skipped)."""
+    out: dict[str, VariableInfo] = {}
+    for v in md.modelVariables:
+        if getattr(v, "dimensions", None):
+            continue
+        out[v.name] = VariableInfo(
+            name=v.name,
+            vr=int(v.valueReference),
+            type=_plain_type(v.type),
+            causality=v.causality,
+            variability=v.variability,
+            initial=v.initial,
+            start=v.start,
+            unit=v.unit if v.unit is not None else (v.declaredType.unit if v.declaredType else None),
+            description=v.description,
+        )
+    return out
+
+
+def safe_extract(path: Path, dest: Path) -> Path:
+    """Extract the FMU archive `path` into `dest`; refuse members that would land outside it."""
+    dest = Path(dest).resolve()
+    with zipfile.ZipFile(path) as zf:
+        for info in zf.infolist():
+            name = info.filename
+            p = PurePosixPath(name)
+            if "\\" in name or p.is_absolute() or ".." in p.parts or ":" in name:
+                raise FmuError(f"{path}: unsafe path in archive: {name!r}")
+            mode = info.external_attr >> 16
+            if stat.S_ISLNK(mode):
+                raise FmuError(f"{path}: symbolic link in archive: {name!r}")
+            target = (dest / name).resolve()
+            if target != dest and dest not in target.parents:
+                raise FmuError(f"{path}: archive member escapes the extraction folder: {name!r}")
+        zf.extractall(dest)
+    return dest
+
+
+class RealPort:
+    """A prepared vector of Real variables: one FMI call moves all values.
+
+    `values` is a preallocated float64 array; `get()` fills it, `set()` sends it.
+    """
+
+    def __init__(self, fmu: Fmu, names: list[str]):
+        self.fmu = fmu
+        self.names = list(names)
+        n = len(self.names)
+        self.n = n
+        self.vrs = (ctypes.c_uint * max(n, 1))(*[fmu.variables[x].vr for x in self.names])
+        self.values = np.zeros(n)
+        self._ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+    def get(self) -> np.ndarray:
+        """Read the variables into `values` (one call) and return it."""
+        if self.n:
+            self.fmu._get_real(self.vrs, self.n, self._ptr, self.n)
+        return self.values
+
+    def set(self) -> None:
+        """Send `values` to the FMU (one call)."""
+        if self.n:
+            self.fmu._set_real(self.vrs, self.n, self._ptr, self.n)
+
+
+class Fmu:
+    """One instance of a Co-Simulation FMU.
+
+    Life cycle: `Fmu(path, name)` extracts and loads; `set_values()` for parameters and start
+    values; `initialize(start, stop)`; then `do_step()` and `RealPort` get/set; `close()`.
+    """
+
+    def __init__(self, path: Path, instance_name: str, workdir: Path | None = None):
+        self.path = Path(path)
+        self.name = instance_name
+        self.md = read_description(self.path)
+        self.fmi3 = self.md.fmiVersion.startswith("3.")
+        self.variables = variables_of(self.md)
+        cs = self.md.coSimulation
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs) and not self.fmi3
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.last_log = ""
+        self._own_dir = workdir is None
+        self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
+        self.slave = None
+        self._instantiated = False
+        try:
+            safe_extract(self.path, self.dir)
+            self._load()
+        except BaseException:
+            self.close()
+            raise
+
+    # -- loading ------------------------------------------------------------------------------
+    def _log(self, env, instance, status, category, message) -> None:
+        """FMU log callback (FMI 2 and 3 signatures differ only in argument count)."""
+        msg = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        self.last_log = msg
+
+    def _load(self) -> None:
+        kw = dict(
+            guid=self.md.instantiationToken if self.fmi3 else self.md.guid,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            unzipDirectory=str(self.dir),
+            instanceName=self.name,
+        )
+        try:
+            if self.fmi3:
+                from fmpy.fmi3 import FMU3Slave
+
+                self.slave = FMU3Slave(**kw)
+                self.slave.instantiate(logMessage=self._log3)
+                self._get_real_fn = self.slave.fmi3GetFloat64
+                self._set_real_fn = self.slave.fmi3SetFloat64
+            else:
+                from fmpy import calloc, free
+                from fmpy.fmi2 import (
+                    FMU2Slave,
+                    fmi2CallbackAllocateMemoryTYPE,
+                    fmi2CallbackFreeMemoryTYPE,
+                    fmi2CallbackFunctions,
+                    fmi2CallbackLoggerTYPE,
+                )
+
+                self.slave = FMU2Slave(**kw)
+                cb = fmi2CallbackFunctions()
+                cb.logger = fmi2CallbackLoggerTYPE(self._log2)
+                cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+                cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+                self.slave.instantiate(callbacks=cb)
+                self._get_real_fn = self.slave.fmi2GetReal
+                self._set_real_fn = self.slave.fmi2SetReal
+            self._instantiated = True
+        except FMICallException as e:
+            raise FmuError(self.describe(str(e))) from e
+        except Exception as e:
+            raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
+
+    def _log2(self, env, instance, status, category, message) -> None:
+        self.last_log = message.decode("utf-8", "replace") if message else ""
+
+    def _log3(self, env, status, category, message) -> None:
+        self.last_log = message.decode("utf-8", "replace") if message else ""
+
+    def describe(self, what: str) -> str:
+        """`what`, prefixed with the instance name and followed by the FMU's last log message."""
+        tail = f" (FMU says: {self.last_log.strip()})" if self.last_log.strip() else ""
+        return f"{self.name}: {what}{tail}"
+
+    # -- fast real access (value references prepared by RealPort) -------------------------------
+    def _get_real(self, vrs, n: int, ptr, nvalues: int) -> None:
+        try:
+            if self.fmi3:
+                self._get_real_fn(self.slave.component, vrs, n, ptr, nvalues)
+            else:
+                self._get_real_fn(self.slave.component, vrs, n, ptr)
+        except FMICallException as e:
+            raise FmuError(self.describe(str(e))) from e
+
+    def _set_real(self, vrs, n: int, ptr, nvalues: int) -> None:
+        try:
+            if self.fmi3:
+                self._set_real_fn(self.slave.component, vrs, n, ptr, nvalues)
+            else:
+                self._set_real_fn(self.slave.component, vrs, n, ptr)
+        except FMICallException as e:
+            raise FmuError(self.describe(str(e))) from e
+
+    def real_port(self, names: list[str]) -> RealPort:
+        """A prepared vector of Real variables (names must exist and be Real)."""
+        for n in names:
+            v = self.variables.get(n)
+            if v is None:
+                raise FmuError(f"{self.name}: no variable {n!r} in {self.path.name}")
+            if v.type != "Real":
+                raise FmuError(f"{self.name}.{n}: type {v.type}, a Real is needed here")
+        return RealPort(self, names)
+
+    # -- typed values (set-up, recording of non-Real variables) ---------------------------------
+    def set_values(self, values: dict[str, object]) -> None:
+        """Set parameters / start values by name, converting each to the variable's type."""
+        for name, value in values.items():
+            v = self.variables.get(name)
+            if v is None:
+                raise FmuError(f"{self.name}: no variable {name!r} in {self.path.name}")
+            if v.causality in ("calculatedParameter", "independent") or v.variability == "constant":
+                raise FmuError(f"{self.name}.{name}: a {v.causality} {v.variability} variable cannot be set")
+            try:
+                self._set_one(v, value)
+            except FMICallException as e:
+                raise FmuError(self.describe(f"cannot set {name} = {value!r}: {e}")) from e
+
+    def _set_one(self, v: VariableInfo, value: object) -> None:
+        s = self.slave
+        if v.type == "Real":
+            x = float(value)  # type: ignore[arg-type]
+            s.setFloat64([v.vr], [x]) if self.fmi3 else s.setReal([v.vr], [x])
+        elif v.type in ("Integer", "Enumeration"):
+            if isinstance(value, float) and not value.is_integer():
+                raise FmuError(f"{self.name}.{v.name}: {value!r} is not an integer")
+            x = int(value)  # type: ignore[arg-type]
+            s.setInt32([v.vr], [x]) if self.fmi3 else s.setInteger([v.vr], [x])
+        elif v.type == "Boolean":
+            if isinstance(value, str):
+                if value.lower() not in ("true", "false", "1", "0"):
+                    raise FmuError(f"{self.name}.{v.name}: {value!r} is not a Boolean")
+                value = value.lower() in ("true", "1")
+            s.setBoolean([v.vr], [bool(value)])
+        elif v.type == "String":
+            s.setString([v.vr], [str(value)])
+        else:
+            raise FmuError(f"{self.name}.{v.name}: variables of type {v.type} are not supported")
+
+    def get_value(self, name: str) -> float:
+        """Current value of a Real, Integer, Enumeration or Boolean variable as a float."""
+        v = self.variables[name]
+        s = self.slave
+        try:
+            if v.type == "Real":
+                return float((s.getFloat64 if self.fmi3 else s.getReal)([v.vr])[0])
+            if v.type in ("Integer", "Enumeration"):
+                return float((s.getInt32 if self.fmi3 else s.getInteger)([v.vr])[0])
+            if v.type == "Boolean":
+                return float(bool(s.getBoolean([v.vr])[0]))
+        except FMICallException as e:
+            raise FmuError(self.describe(f"cannot get {name}: {e}")) from e
+        raise FmuError(f"{self.name}.{name}: variables of type {v.type} cannot be recorded")
+
+    # -- life cycle --------------------------------------------------------------------------
+    def enter_initialization(self, start: float, stop: float) -> None:
+        """Enter initialisation mode for the experiment [start, stop] (s)."""
+        try:
+            if self.fmi3:
+                self.slave.enterInitializationMode(startTime=start, stopTime=stop)
+            else:
+                self.slave.setupExperiment(startTime=start, stopTime=stop)
+                self.slave.enterInitializationMode()
+        except FMICallException as e:
+            raise FmuError(self.describe(f"initialisation failed: {e}")) from e
+
+    def exit_initialization(self) -> None:
+        """Leave initialisation mode; the FMU is then ready to step."""
+        try:
+            self.slave.exitInitializationMode()
+        except FMICallException as e:
+            raise FmuError(self.describe(f"initialisation failed: {e}")) from e
+
+    def set_input_derivatives(self, port: RealPort, order: int, values: np.ndarray) -> None:
+        """fmi2SetRealInputDerivatives: derivative `order` of the inputs of `port` (units/s^order)."""
+        try:
+            self.slave.setRealInputDerivatives(list(port.vrs)[: port.n], [order] * port.n, list(values))
+        except FMICallException as e:
+            raise FmuError(self.describe(str(e))) from e
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from communication point t by h (s); FmuError if the FMU refuses."""
+        try:
+            if self.fmi3:
+                event, terminate, early, last = self.slave.doStep(t, h)
+                if terminate:
+                    raise FmuError(self.describe(f"asked to terminate at t={t + h}"))
+            else:
+                self.slave.fmi2DoStep(self.slave.component, t, h, 1)
+        except FMICallException as e:
+            raise FmuError(self.describe(str(e))) from e
+
+    def close(self) -> None:
+        """Terminate, free the instance and remove the extracted files; safe to call twice."""
+        s, self.slave = self.slave, None
+        if s is not None:
+            if self._instantiated:
+                try:
+                    s.terminate()
+                except Exception:
+                    pass  # a failed FMU may refuse to terminate; free it anyway
+                try:
+                    s.freeInstance()
+                except Exception:
+                    pass
+            else:
+                try:
+                    s.freeLibrary()
+                except Exception:
+                    pass
+        if self._own_dir and self.dir.exists():
+            shutil.rmtree(self.dir, ignore_errors=True)

@@ -1,0 +1,146 @@
+"""Recorded results and run telemetry.
+
+Rows (time in s, then one column per "component.variable") are buffered in a preallocated
+chunk and streamed to disk when it fills: a raw float64 file (read back as a numpy structured
+array) and, when asked, a CSV file that `fmpy.util.read_csv` reads. Memory stays flat however
+long the run.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+CHUNK_ROWS = 4096
+
+
+class Recorder:
+    """Collects rows of `len(columns)` floats; `columns[0]` is "time"."""
+
+    def __init__(self, columns: list[str], csv_path: Path | None = None, chunk_rows: int = CHUNK_ROWS):
+        self.columns = columns
+        self.dtype = np.dtype([(c, np.float64) for c in columns])
+        self.chunk = np.zeros((chunk_rows, len(columns)))
+        self.fill = 0
+        self.rows = 0
+        self.tmpdir = Path(tempfile.mkdtemp(prefix="master_results_"))
+        self.bin_path = self.tmpdir / "results.bin"
+        self._bin = open(self.bin_path, "wb")
+        self.csv_path = Path(csv_path) if csv_path is not None else None
+        self._csv = None
+        if self.csv_path is not None:
+            self.csv_path.parent.mkdir(parents=True, exist_ok=True)
+            self._csv = open(self.csv_path, "w")
+            self._csv.write(",".join(f'"{c}"' if c != "time" else c for c in columns) + "\n")
+
+    def next_row(self) -> np.ndarray:
+        """The row to fill next (a view into the chunk); call `commit()` once it is filled."""
+        return self.chunk[self.fill]
+
+    def commit(self) -> None:
+        self.fill += 1
+        self.rows += 1
+        if self.fill == len(self.chunk):
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the buffered rows to disk."""
+        if not self.fill:
+            return
+        block = self.chunk[: self.fill]
+        self._bin.write(block.tobytes())
+        if self._csv is not None:
+            np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
+        self.fill = 0
+
+    def close(self) -> None:
+        """Flush and close the files (the results stay readable through `data()`)."""
+        self.flush()
+        if not self._bin.closed:
+            self._bin.close()
+        if self._csv is not None and not self._csv.closed:
+            self._csv.close()
+
+    def data(self) -> np.ndarray:
+        """All rows as a structured array with fields "time", "component.variable", ..."""
+        self.flush()
+        self._bin.flush()
+        return np.fromfile(self.bin_path, dtype=self.dtype)
+
+    def discard(self) -> None:
+        """Remove the raw file (the CSV, if any, stays)."""
+        self.close()
+        shutil.rmtree(self.tmpdir, ignore_errors=True)
+
+
+@dataclass
+class RunSummary:
+    """Telemetry of one run. Times in s."""
+
+    scenario: str
+    backend: str
+    stop_reason: str  # "finished" or the error message
+    simulated_time: float
+    wall_time: float
+    macro_steps: int
+    steps: dict[str, int] = field(default_factory=dict)  # communication steps per component
+    fmu_time: dict[str, float] = field(default_factory=dict)  # wall time inside FMI calls
+    rows: int = 0
+    overruns: int | None = None  # --real-time only: macro steps that ended late
+    worst_lateness: float | None = None  # s
+    output: str | None = None
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time per wall time (> 1: faster than real time)."""
+        return self.simulated_time / self.wall_time if self.wall_time > 0 else float("inf")
+
+    @property
+    def overhead_per_macro_step(self) -> float:
+        """Wall time outside FMI calls per macro step (s)."""
+        if not self.macro_steps:
+            return 0.0
+        return max(self.wall_time - sum(self.fmu_time.values()), 0.0) / self.macro_steps
+
+    def __str__(self) -> str:
+        lines = [
+            f"scenario {self.scenario}: {self.stop_reason}",
+            f"  simulated {self.simulated_time:g} s in {self.wall_time:.3f} s wall "
+            f"(real-time factor {self.real_time_factor:.3g}), {self.macro_steps} macro steps, "
+            f"backend {self.backend}",
+        ]
+        for name, n in self.steps.items():
+            lines.append(f"  {name}: {n} steps, {self.fmu_time.get(name, 0.0):.3f} s inside the FMU")
+        lines.append(f"  master overhead: {self.overhead_per_macro_step * 1e6:.1f} us per macro step")
+        if self.overruns is not None:
+            late_ms = 1e3 * (self.worst_lateness or 0.0)
+            lines.append(f"  real time: {self.overruns} frame overruns, worst lateness {late_ms:.3f} ms")
+        if self.output:
+            lines.append(f"  {self.rows} rows written to {self.output}")
+        return "\n".join(lines)
+
+
+class RunResult:
+    """What `master.run` returns: `.data` (structured array), `.summary`, `.columns`."""
+
+    def __init__(self, recorder: Recorder, summary: RunSummary):
+        self._recorder = recorder
+        self.summary = summary
+        self.columns = recorder.columns
+        self._data: np.ndarray | None = None
+
+    @property
+    def data(self) -> np.ndarray:
+        if self._data is None:
+            self._data = self._recorder.data()
+        return self._data
+
+    def __del__(self) -> None:
+        try:
+            self._recorder.discard()
+        except Exception:
+            pass

@@ -1,0 +1,320 @@
+"""The schedule: who steps when, with which inputs, from exact rational times.
+
+A `Plan` is built from a `Scenario` and the model descriptions (variables and capabilities)
+of its FMUs; it never calls an FMU. Component i advances with communication step
+h_i = H / k_i; its j-th communication point is t_start + j * h_i, computed from integers, so a
+run of any length ends exactly at the stop time. Times are in seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from master.fmu import VariableInfo
+from master.scenario.model import Scenario, Stimulus
+
+MAX_ORDER = 3
+
+
+class PlanError(Exception):
+    """The scenario cannot be scheduled (names the scenario file and the element)."""
+
+
+@dataclass(frozen=True)
+class Capability:
+    """What the planner needs to know of one FMU besides its variables."""
+
+    can_interpolate_inputs: bool = False
+    fmi_version: str = "2.0"
+
+
+@dataclass(frozen=True)
+class Clock:
+    """Communication points of one component: t_j = (num0 + j * dnum) / den (exact up to float rounding)."""
+
+    num0: int
+    dnum: int
+    den: int
+
+    @staticmethod
+    def make(start: Fraction, macro_step: Fraction, ratio: int) -> Clock:
+        h = macro_step / ratio
+        den = start.denominator * h.denominator // _gcd(start.denominator, h.denominator)
+        return Clock(start.numerator * (den // start.denominator), h.numerator * (den // h.denominator), den)
+
+    def time(self, j: int) -> float:
+        """Communication point j as the float nearest to the exact rational (s)."""
+        return (self.num0 + j * self.dnum) / self.den
+
+    def exact(self, j: int) -> Fraction:
+        """Communication point j as an exact rational (s)."""
+        return Fraction(self.num0 + j * self.dnum, self.den)
+
+
+def _gcd(a: int, b: int) -> int:
+    while b:
+        a, b = b, a % b
+    return a
+
+
+@dataclass(frozen=True)
+class Link:
+    """Outputs of `source` that drive inputs of `consumer` through polynomials of one order."""
+
+    source: str
+    consumer: str
+    outputs: tuple[str, ...]  # source variables
+    inputs: tuple[str, ...]  # consumer variables, same order
+    order: int  # requested polynomial order 0..3
+    source_first: bool  # the source completes the macro step before the consumer starts it
+    k_source: int  # effective step ratios
+    k_consumer: int
+
+    def window(self, n: int, j: int) -> tuple[int, int]:
+        """Source samples for the consumer's step j (inside macro step n).
+
+        Returns (j_end, order_used): the polynomial goes through source samples
+        j_end - order_used .. j_end. j_end is the first source sample at or after the end of the
+        consumer's step, but no later than what exists (Jacobi: t_n; source first: t_n+1).
+        order_used < order only at start-up, while there is not enough history.
+        """
+        ks, kc = self.k_source, self.k_consumer
+        available = (n + 1) * ks if self.source_first else n * ks
+        j_end = min(available, -((-(j + 1) * ks) // kc))
+        return j_end, min(self.order, j_end)
+
+    def startup(self) -> list[tuple[int, int]]:
+        """(macro step, lowest order used in it) for the macro steps that use a lower order."""
+        out = []
+        n = 0
+        while True:
+            low = min(self.window(n, n * self.k_consumer + m)[1] for m in range(self.k_consumer))
+            if low >= self.order:
+                return out
+            out.append((n, low))
+            n += 1
+
+
+@dataclass(frozen=True)
+class PlanComponent:
+    name: str
+    ratio: int  # effective k: communication steps per macro step
+    step: Fraction  # its communication step (s)
+    clock: Clock
+    interpolate_inputs: bool  # one step per macro step, inputs handed over as polynomials
+    derivative_order: int  # highest input derivative handed to the FMU (0: none)
+
+
+@dataclass(frozen=True)
+class Plan:
+    scenario: Scenario
+    components: tuple[PlanComponent, ...]  # in stepping order
+    links: tuple[Link, ...]
+    stimuli: tuple[Stimulus, ...]
+    n_macro: int
+    record: tuple[tuple[str, str], ...]
+    record_every: int  # macro steps between recorded rows
+    macro_clock: Clock
+    notes: tuple[str, ...] = field(default=())  # start-up and capability notes for the run log
+
+    def component(self, name: str) -> PlanComponent:
+        for c in self.components:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    def links_into(self, name: str) -> list[Link]:
+        return [lk for lk in self.links if lk.consumer == name]
+
+    def describe(self) -> str:
+        """Human-readable schedule (for `master info`)."""
+        sc = self.scenario
+        lines = [
+            f"schedule: {sc.coupling}, macro step H = {sc.macro_step} s = {float(sc.macro_step):g} s, "
+            f"{self.n_macro} macro steps from t = {float(sc.start_time):g} to {float(sc.stop_time):g} s",
+        ]
+        for c in self.components:
+            extra = (
+                f", inputs as polynomials (derivatives up to {c.derivative_order})"
+                if c.interpolate_inputs
+                else ""
+            )
+            lines.append(f"  {c.name}: k = {c.ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
+        for lk in self.links:
+            how = "interpolated" if lk.source_first else "extrapolated"
+            for o, i in zip(lk.outputs, lk.inputs, strict=True):
+                lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}")
+        for s in self.stimuli:
+            lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
+        lines.extend(f"  note: {n}" for n in self.notes)
+        return "\n".join(lines)
+
+
+def _err(sc: Scenario, what: str) -> PlanError:
+    return PlanError(f"{sc.path}: {what}")
+
+
+def build_plan(
+    sc: Scenario,
+    variables: dict[str, dict[str, VariableInfo]],
+    capabilities: dict[str, Capability] | None = None,
+) -> Plan:
+    """Schedule `sc`. `variables[component]` are the scalar variables of its FMU."""
+    capabilities = capabilities or {}
+    names = [c.name for c in sc.components]
+    if len(set(names)) != len(names):
+        raise _err(sc, f"duplicate component names in {names}")
+    H = Fraction(sc.macro_step)
+    if H <= 0:
+        raise _err(sc, f"macro step must be positive, got {H}")
+    span = Fraction(sc.stop_time) - Fraction(sc.start_time)
+    if span <= 0:
+        raise _err(sc, f"stop time {sc.stop_time} must be after start time {sc.start_time}")
+    if span % H:
+        raise _err(sc, f"stop time - start time = {span} s is not a whole number of macro steps H = {H} s")
+    n_macro = int(span / H)
+    start = Fraction(sc.start_time)
+
+    # stepping order
+    if sc.coupling == "gauss-seidel" and sc.order:
+        if sorted(sc.order) != sorted(names):
+            raise _err(sc, f"order {list(sc.order)} must list each component once: {names}")
+        order = list(sc.order)
+    else:
+        order = names
+    rank = {n: i for i, n in enumerate(order)}
+
+    notes: list[str] = []
+    comps: dict[str, PlanComponent] = {}
+    for c in sc.components:
+        if c.name not in variables:
+            raise _err(sc, f"component {c.name}: no model description")
+        if not isinstance(c.step_ratio, int) or c.step_ratio < 1:
+            raise _err(sc, f"component {c.name}: step ratio must be a positive integer, got {c.step_ratio!r}")
+        if not 0 <= c.extrapolation_order <= MAX_ORDER:
+            raise _err(
+                sc, f"component {c.name}: extrapolation order {c.extrapolation_order} not in 0..{MAX_ORDER}"
+            )
+        cap = capabilities.get(c.name, Capability())
+        interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs)
+        if c.interpolate_inputs and not interp:
+            notes.append(
+                f"{c.name}: interpolate_inputs asked but the FMU cannot interpolate inputs "
+                f"(FMI {cap.fmi_version}); it steps {c.step_ratio} times per macro step instead"
+            )
+        k = 1 if interp else c.step_ratio
+        comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0)
+
+    # links: group connections by (source, consumer, order)
+    groups: dict[tuple[str, str, int], list[tuple[str, str]]] = {}
+    driven: set[tuple[str, str]] = set()
+    for cn in sc.connections:
+        where = (
+            f"connection {cn.start_component}.{cn.start_connector} -> {cn.end_component}.{cn.end_connector}"
+        )
+        for comp, var, causal in (
+            (cn.start_component, cn.start_connector, "output"),
+            (cn.end_component, cn.end_connector, "input"),
+        ):
+            if comp not in variables:
+                raise _err(sc, f"{where}: no component {comp!r}")
+            v = variables[comp].get(var)
+            if v is None:
+                raise _err(sc, f"{where}: component {comp} has no variable {var!r}")
+            if v.type != "Real":
+                raise _err(sc, f"{where}: {comp}.{var} is {v.type}; only Real signals can be coupled")
+            if v.causality != causal:
+                raise _err(sc, f"{where}: {comp}.{var} has causality {v.causality}, {causal} needed")
+        key_in = (cn.end_component, cn.end_connector)
+        if key_in in driven:
+            raise _err(sc, f"{where}: input {cn.end_component}.{cn.end_connector} is driven twice")
+        driven.add(key_in)
+        order_ = sc.component(cn.end_component).extrapolation_order
+        order_ = order_ if cn.extrapolation_order is None else cn.extrapolation_order
+        if not 0 <= order_ <= MAX_ORDER:
+            raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
+        groups.setdefault((cn.start_component, cn.end_component, order_), []).append(
+            (cn.start_connector, cn.end_connector)
+        )
+    links = []
+    for (src, dst, order_), pairs in groups.items():
+        first = sc.coupling == "gauss-seidel" and rank[src] < rank[dst]
+        lk = Link(
+            src,
+            dst,
+            tuple(p[0] for p in pairs),
+            tuple(p[1] for p in pairs),
+            order_,
+            first,
+            comps[src].ratio,
+            comps[dst].ratio,
+        )
+        links.append(lk)
+        su = lk.startup()
+        if su:
+            steps = ", ".join(f"order {o} in macro step {n}" for n, o in su)
+            notes.append(
+                f"start-up: {src} -> {dst} ({', '.join(lk.inputs)}) uses {steps}; "
+                f"full order {order_} from t = {float(start + len(su) * H):g} s"
+            )
+    for name, pc in comps.items():
+        if pc.interpolate_inputs:
+            orders = [lk.order for lk in links if lk.consumer == name]
+            comps[name] = PlanComponent(pc.name, pc.ratio, pc.step, pc.clock, True, max(orders, default=0))
+
+    for s in sc.stimuli:
+        if s.component not in variables or s.variable not in variables[s.component]:
+            raise _err(sc, f"stimulus on {s.component}.{s.variable}: no such variable")
+        v = variables[s.component][s.variable]
+        if v.causality != "input" or v.type != "Real":
+            raise _err(
+                sc,
+                f"stimulus on {s.component}.{s.variable}: a Real input is needed, got {v.causality} {v.type}",
+            )
+        if (s.component, s.variable) in driven:
+            raise _err(sc, f"stimulus on {s.component}.{s.variable}: the input is already driven")
+        if len(s.times) != len(s.values) or not s.times:
+            raise _err(
+                sc,
+                f"stimulus on {s.component}.{s.variable}: need equal, non-zero numbers of times and values",
+            )
+        if any(b < a for a, b in zip(s.times, s.times[1:], strict=False)):
+            raise _err(sc, f"stimulus on {s.component}.{s.variable}: times must not decrease")
+        driven.add((s.component, s.variable))
+
+    # recording
+    record = tuple(sc.record)
+    if not record:
+        record = tuple(
+            (c.name, v.name)
+            for c in sc.components
+            for v in variables[c.name].values()
+            if v.causality == "output"
+        )
+    for comp, var in record:
+        if comp not in variables:
+            raise _err(sc, f"record {comp}.{var}: no component {comp!r}")
+        v = variables[comp].get(var)
+        if v is None:
+            raise _err(sc, f"record {comp}.{var}: component {comp} has no variable {var!r}")
+        if v.type not in ("Real", "Integer", "Enumeration", "Boolean"):
+            raise _err(sc, f"record {comp}.{var}: variables of type {v.type} cannot be recorded")
+    every = 1
+    if sc.record_interval is not None:
+        ri = Fraction(sc.record_interval)
+        if ri <= 0 or ri % H:
+            raise _err(sc, f"record interval {ri} s must be a positive multiple of the macro step {H} s")
+        every = int(ri / H)
+
+    return Plan(
+        scenario=sc,
+        components=tuple(comps[n] for n in order),
+        links=tuple(links),
+        stimuli=tuple(sc.stimuli),
+        n_macro=n_macro,
+        record=record,
+        record_every=every,
+        macro_clock=Clock.make(start, H, 1),
+        notes=tuple(notes),
+    )
