@@ -67,8 +67,9 @@ class Recorder:
 
     def data(self) -> np.ndarray:
         """All rows as a structured array with fields "time", "component.variable", ..."""
-        self.flush()
-        self._bin.flush()
+        if not self._bin.closed:
+            self.flush()
+            self._bin.flush()
         return np.fromfile(self.bin_path, dtype=self.dtype)
 
     def discard(self) -> None:
@@ -144,3 +145,27 @@ class RunResult:
             self._recorder.discard()
         except Exception:
             pass
+
+
+def plot_result(data: np.ndarray, png: str | Path, title: str = "", columns: list[str] | None = None) -> Path:
+    """Plot recorded columns of a structured array over "time" into a PNG file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = columns or [n for n in data.dtype.names if n != "time"]
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for n in names:
+        ax.plot(data["time"], data[n], label=n)
+    ax.set_xlabel("time [s]")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    if names:
+        ax.legend(fontsize="small")
+    fig.tight_layout()
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
+    return png

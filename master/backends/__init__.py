@@ -1,1 +1,1 @@
-"""Backends execute a Plan: `serial` in-process; a parallel backend runs the same component code in workers."""
+"""Backends execute a Plan: `serial` in-process; a parallel one runs the same component code in workers."""

@@ -1,0 +1,227 @@
+"""The public Python API: `run`, `validate`, `info`, `plan`.
+
+result = master.run("models/oscillator/oscillator.ssd", stop_time=10, output="out.csv")
+result.data["mass1.x"], result.summary.real_time_factor
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import logging
+from fractions import Fraction
+from pathlib import Path
+
+from master.backends.component import SimulationError
+from master.backends.driver import execute
+from master.fmu import FmuError, read_description, variables_of
+from master.recorder import Recorder, RunResult
+from master.scenario.model import Scenario, Value
+from master.schedule import Capability, Plan, PlanError, build_plan
+
+log = logging.getLogger("master")
+
+BACKENDS = ("serial", "parallel")
+
+
+class UsageError(Exception):
+    """Bad input from the user (option, value or file), with a message saying what and where."""
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario file (.ssd / .ssp) through `master.scenario.load`."""
+    path = Path(path)
+    if not path.exists():
+        raise UsageError(f"{path}: no such scenario file")
+    try:
+        from master.scenario import load
+    except ImportError as e:
+        raise UsageError(f"{path}: scenario files cannot be read yet (master.scenario.load missing)") from e
+    params = list(inspect.signature(load).parameters.values())
+    if len(params) > 1 and params[1].default is inspect.Parameter.empty:
+        return load(path, {})
+    return load(path)
+
+
+def parse_value(text: str) -> Value:
+    """A --set value: int, float, true/false, else the string itself."""
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _parse_time(what: str, value: float | str | Fraction) -> Fraction:
+    try:
+        return Fraction(str(value)) if not isinstance(value, Fraction) else value
+    except (ValueError, ZeroDivisionError) as e:
+        raise UsageError(f"{what}: {value!r} is not a number") from e
+
+
+def apply_overrides(
+    sc: Scenario,
+    stop_time: float | str | Fraction | None = None,
+    record: list[str] | None = None,
+    set_values: dict[str, Value] | list[str] | None = None,
+    output_interval: float | str | Fraction | None = None,
+) -> Scenario:
+    """A copy of `sc` with command-line style overrides ("component.variable" names)."""
+    names = [c.name for c in sc.components]
+    if stop_time is not None:
+        sc = dataclasses.replace(sc, stop_time=_parse_time("--stop-time", stop_time))
+    if output_interval is not None:
+        sc = dataclasses.replace(sc, record_interval=_parse_time("--output-interval", output_interval))
+    if record:
+        pairs = []
+        for r in record:
+            comp, _, var = r.partition(".")
+            if not var or comp not in names:
+                raise UsageError(f"--record {r}: expected component.variable with a component of {names}")
+            pairs.append((comp, var))
+        sc = dataclasses.replace(sc, record=tuple(pairs))
+    if set_values:
+        items = set_values.items() if isinstance(set_values, dict) else [_split_set(s) for s in set_values]
+        comps = {c.name: c for c in sc.components}
+        for key, value in items:
+            comp, _, var = key.partition(".")
+            if not var or comp not in comps:
+                raise UsageError(
+                    f"--set {key}={value}: expected component.variable=value with a component of {names}"
+                )
+            c = comps[comp]
+            comps[comp] = dataclasses.replace(c, parameters={**c.parameters, var: value})
+        sc = dataclasses.replace(sc, components=tuple(comps[n] for n in names))
+    return sc
+
+
+def _split_set(text: str) -> tuple[str, Value]:
+    key, eq, value = text.partition("=")
+    if not eq:
+        raise UsageError(f"--set {text}: expected component.variable=value")
+    return key.strip(), parse_value(value.strip())
+
+
+def plan(sc: Scenario) -> Plan:
+    """Schedule a scenario from its FMUs' model descriptions (no FMU is loaded)."""
+    variables = {}
+    caps = {}
+    for c in sc.components:
+        try:
+            md = read_description(Path(c.fmu_path))
+        except FmuError as e:
+            raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
+        variables[c.name] = variables_of(md)
+        caps[c.name] = Capability(bool(md.coSimulation.canInterpolateInputs), md.fmiVersion)
+    return build_plan(sc, variables, caps)
+
+
+def _make_backend(name: str, p: Plan):
+    if name == "serial":
+        from master.backends.serial import SerialBackend
+
+        return SerialBackend(p)
+    if name == "parallel":
+        try:
+            from master.backends.parallel import ParallelBackend  # type: ignore[import-not-found]
+        except ImportError as e:
+            raise UsageError("backend 'parallel' is not available yet; use --serial") from e
+        return ParallelBackend(p)
+    raise UsageError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
+
+
+def run(
+    scenario: str | Path | Scenario,
+    *,
+    stop_time: float | str | Fraction | None = None,
+    output: str | Path | None = None,
+    record: list[str] | None = None,
+    set_values: dict[str, Value] | list[str] | None = None,
+    output_interval: float | str | Fraction | None = None,
+    backend: str = "serial",
+    real_time: float | None = None,
+    progress: bool = False,
+    plot: str | Path | None = None,
+) -> RunResult:
+    """Run a scenario (file or `Scenario`) and return its results.
+
+    stop_time, output_interval in s; `record` and `set_values` use "component.variable" names;
+    `real_time` paces the run (1.0: wall clock speed). On failure a SimulationError is raised
+    after the rows computed so far are written; it carries `.result` (a RunResult).
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = apply_overrides(sc, stop_time, record, set_values, output_interval)
+    p = plan(sc)
+    for note in p.notes:
+        log.info(note)
+    be = _make_backend(backend, p)
+    columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
+    recorder = Recorder(columns, Path(output) if output is not None else None)
+    try:
+        be.open()
+        summary = execute(p, be, recorder, real_time=real_time, progress=progress)
+    except SimulationError as e:
+        summary = e.summary  # type: ignore[attr-defined]
+        summary.output = str(output) if output is not None else None
+        e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
+        raise
+    except BaseException:
+        recorder.discard()
+        raise
+    finally:
+        be.close()
+    summary.output = str(output) if output is not None else None
+    result = RunResult(recorder, summary)
+    if plot is not None:
+        from master.recorder import plot_result
+
+        plot_result(result.data, plot, title=sc.name)
+    return result
+
+
+def validate(path: str | Path) -> list:
+    """Problems found in a scenario file (empty: none); see `master.scenario.validate`."""
+    from master.scenario import validate as _validate
+
+    return list(_validate(Path(path)))
+
+
+def info(path: str | Path) -> str:
+    """Text description of an FMU (variables, capabilities) or a scenario (components, schedule)."""
+    path = Path(path)
+    if path.suffix.lower() == ".fmu":
+        return fmu_info(path)
+    sc = load_scenario(path)
+    p = plan(sc)
+    lines = [f"scenario {sc.name} ({sc.path})"]
+    for c in sc.components:
+        lines.append(f"  component {c.name}: {c.fmu_path}")
+    lines.append(p.describe())
+    return "\n".join(lines)
+
+
+def fmu_info(path: Path) -> str:
+    """Variables and Co-Simulation capabilities of one FMU."""
+    md = read_description(path)
+    cs = md.coSimulation
+    lines = [
+        f"{path}: {md.modelName}, FMI {md.fmiVersion}, generated by {md.generationTool or '?'}",
+        f"  canHandleVariableCommunicationStepSize={cs.canHandleVariableCommunicationStepSize} "
+        f"canInterpolateInputs={cs.canInterpolateInputs} "
+        f"maxOutputDerivativeOrder={cs.maxOutputDerivativeOrder} "
+        f"canGetAndSetFMUstate={cs.canGetAndSetFMUstate}",
+        f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit",
+    ]
+    for v in variables_of(md).values():
+        lines.append(
+            f"  {v.name:<24} {v.causality:<20} {v.variability:<12} {v.type:<12} "
+            f"{v.start or '':<12} {v.unit or ''}"
+        )
+    return "\n".join(lines)
+
+
+__all__ = ["run", "validate", "info", "plan", "apply_overrides", "UsageError", "SimulationError", "PlanError"]

@@ -1,0 +1,166 @@
+"""Command line: `master run|validate|info|plot|build-fmus ...` (argument parsing only)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from master import api
+from master.backends.component import SimulationError
+from master.fmu import FmuError
+from master.schedule import PlanError
+
+USER_ERRORS: tuple[type[BaseException], ...] = (
+    api.UsageError,
+    FmuError,
+    PlanError,
+    SimulationError,
+    FileNotFoundError,
+    ValueError,
+)
+
+
+def _scenario_errors() -> tuple[type[BaseException], ...]:
+    """Exception classes of the scenario reader (user errors in scenario files)."""
+    try:
+        import master.scenario as s
+    except ImportError:
+        return ()
+    return tuple(
+        v
+        for k, v in vars(s).items()
+        if k.endswith("Error") and isinstance(v, type) and issubclass(v, Exception)
+    )
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="master", description="Multirate FMI co-simulation master")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
+    r.add_argument("scenario", help="scenario file (.ssd or .ssp)")
+    r.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
+    r.add_argument("-o", "--output", metavar="CSV", help="results file (CSV)")
+    r.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
+    r.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="set a parameter (repeatable)")
+    r.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
+    g = r.add_mutually_exclusive_group()
+    g.add_argument("--serial", dest="backend", action="store_const", const="serial", help="serial backend")
+    g.add_argument(
+        "--parallel", dest="backend", action="store_const", const="parallel", help="parallel backend"
+    )
+    g.add_argument("--backend", dest="backend", choices=api.BACKENDS, help="backend by name")
+    r.add_argument("--plot", metavar="PNG", help="plot the recorded variables into this file")
+    r.add_argument(
+        "--real-time",
+        nargs="?",
+        const=1.0,
+        type=float,
+        metavar="FACTOR",
+        help="pace the run to the wall clock (FACTOR > 1: faster than real time)",
+    )
+    r.add_argument(
+        "--progress", action="store_true", help="show a progress bar even when stderr is not a tty"
+    )
+    r.add_argument("-q", "--quiet", action="store_true", help="print errors only")
+
+    v = sub.add_parser("validate", help="check a scenario file", description="Check a scenario file.")
+    v.add_argument("scenario")
+
+    i = sub.add_parser(
+        "info", help="describe an FMU or a scenario", description="Variables, capabilities, schedule."
+    )
+    i.add_argument("path", help=".fmu or scenario file")
+
+    pl = sub.add_parser("plot", help="plot a results CSV file", description="Plot a results CSV file.")
+    pl.add_argument("csv")
+    pl.add_argument("-o", "--output", metavar="PNG", help="image file (default: CSV name with .png)")
+    pl.add_argument("--record", action="append", metavar="COMP.VAR", help="plot only these columns")
+
+    b = sub.add_parser("build-fmus", help="build the project's FMUs", add_help=False)
+    b.add_argument("args", nargs=argparse.REMAINDER)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit code (0 ok, 1 failed run or bad input, 2 bad usage)."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["build-fmus"]:
+        from master.fmubuild import main as build_main
+
+        return int(build_main(argv[1:]) or 0)
+    args = _parser().parse_args(argv)
+    quiet = getattr(args, "quiet", False)
+    logging.basicConfig(
+        level=logging.WARNING if quiet else logging.INFO, format="%(message)s", stream=sys.stderr
+    )
+    try:
+        return _dispatch(args, quiet)
+    except USER_ERRORS + _scenario_errors() as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
+    if args.command == "run":
+        progress = args.progress or (sys.stderr.isatty() and not quiet)
+        try:
+            result = api.run(
+                args.scenario,
+                stop_time=args.stop_time,
+                output=args.output,
+                record=args.record,
+                set_values=args.set,
+                output_interval=args.output_interval,
+                backend=args.backend or "serial",
+                real_time=args.real_time,
+                progress=progress,
+                plot=args.plot,
+            )
+        except SimulationError as e:
+            res = getattr(e, "result", None)
+            if res is not None and not quiet:
+                print(res.summary, file=sys.stderr)
+            raise
+        if not quiet:
+            print(result.summary)
+        return 0
+    if args.command == "validate":
+        problems = api.validate(args.scenario)
+        for pr in problems:
+            print(pr)
+        if not problems and not getattr(args, "quiet", False):
+            print(f"{args.scenario}: ok")
+        return 1 if problems else 0
+    if args.command == "info":
+        print(api.info(args.path))
+        return 0
+    if args.command == "plot":
+        from fmpy.util import read_csv
+
+        from master.recorder import plot_result
+
+        csv = Path(args.csv)
+        if not csv.is_file():
+            raise api.UsageError(f"{csv}: no such results file")
+        data = read_csv(str(csv))
+        if args.record:
+            missing = [r for r in args.record if r not in data.dtype.names]
+            if missing:
+                raise api.UsageError(
+                    f"{csv}: no column {missing[0]!r}; columns: {', '.join(data.dtype.names)}"
+                )
+        png = Path(args.output) if args.output else csv.with_suffix(".png")
+        plot_result(data, png, title=csv.stem, columns=args.record)
+        print(f"wrote {png}")
+        return 0
+    raise api.UsageError(f"unknown command {args.command}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
