@@ -63,35 +63,24 @@ def extrapolation_weights(order: int, s: float) -> np.ndarray:
 
 
 class _Layout:
-    """Index ranges of the extended state z."""
+    """Index ranges of the extended state z.
+
+    Per component: x, f_(n-1), f_(n-2), Delta_(n-1) (solver histories), then its last
+    order + 1 output samples (newest first), as the runtime's history ring buffer holds them.
+    """
 
     def __init__(self, scheme: LinearScheme) -> None:
-        self.slices: dict[str, tuple[slice, slice, slice, slice]] = {}
+        self.slices: dict[str, tuple[slice, ...]] = {}
+        self.samples: dict[str, slice] = {}
         i = 0
         for comp in scheme.components:
             n = comp.a.shape[0]
             self.slices[comp.name] = tuple(slice(i + j * n, i + (j + 1) * n) for j in range(4))
-            i += 4 * n  # x, f_(n-1), f_(n-2), Delta_(n-1)
-        self.signals = sorted({(p, o) for p, o, _, _ in scheme.connections})
-        self.hist = i  # then `order` past samples of every signal, newest first
-        self.size = i + scheme.order * len(self.signals)
-
-
-def _outputs(scheme: LinearScheme, xs: dict[str, np.ndarray]) -> dict[tuple[str, str], float]:
-    """All outputs at a macro point with exact inputs (feedthrough resolved by repeated passes)."""
-    y = {(c.name, o): 0.0 for c in scheme.components for o in c.outputs}
-    for _ in range(len(scheme.components) + 1):  # no algebraic loop: a DAG settles in len(comps) passes
-        for c in scheme.components:
-            u = np.array([_input_value(scheme, c, i, y) for i in c.inputs])
-            yc = c.c @ xs[c.name] + (c.d @ u if len(u) else 0.0)
-            for k, o in enumerate(c.outputs):
-                y[(c.name, o)] = float(yc[k])
-    return y
-
-
-def _input_value(scheme: LinearScheme, comp: LinearComponent, name: str, y: dict) -> float:
-    d = _driver(scheme, comp.name, name)
-    return 0.0 if d is None else y[d]  # undriven: the linearisation is about its operating value
+            i += 4 * n
+            m = len(comp.outputs) * (scheme.order + 1)
+            self.samples[comp.name] = slice(i, i + m)
+            i += m
+        self.size = i
 
 
 def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] | None:
@@ -99,14 +88,16 @@ def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] |
     return next(((p, o) for p, o, c, i in scheme.connections if c == consumer and i == name), None)
 
 
-def _input_function(k: int, samples: dict, drivers: list, s0: float, ds: float, s_hold: float | None):
-    """u(theta) over one solver step starting at s0 macro steps, theta in [0, 1] of the step."""
-
-    def u_of_t(theta: float) -> np.ndarray:
-        w = extrapolation_weights(k, s_hold if s_hold is not None else s0 + theta * ds)
-        return np.array([0.0 if d is None else float(w @ samples[d]) for d in drivers])
-
-    return u_of_t
+def _inputs(columns: list, k: int, t: float, big_h: float) -> np.ndarray:
+    """Inputs at t (s after t_n): polynomials through each source's samples up to t_n."""
+    vals = []
+    for col in columns:
+        if col is None:
+            vals.append(0.0)  # undriven: the linearisation is about its operating value
+            continue
+        ys, ratio = col
+        vals.append(float(extrapolation_weights(k, t * ratio / big_h) @ ys))
+    return np.array(vals)
 
 
 def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> None:
@@ -146,35 +137,53 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> N
 
 
 def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
-    """One Jacobi macro step of size big_h (s) applied to the extended state z."""
+    """One Jacobi macro step of size big_h (s) applied to the extended state z.
+
+    As master/backends/component.py does it: the consumer's input for its communication step
+    starting at t is the polynomial through the source's samples up to t_n evaluated at t;
+    after each communication step the component samples its outputs, y = C x + D u with the
+    input u it held over that step (the FMU restores the set value after the step).
+    """
     lay = _Layout(scheme)
-    z = np.array(z, dtype=float)
-    xs = {c.name: z[lay.slices[c.name][0]] for c in scheme.components}
-    y_now = _outputs(scheme, xs)
+    z = np.asarray(z, dtype=float)
     k = scheme.order
-    samples = {}
-    for s_idx, sig in enumerate(lay.signals):
-        past = [z[lay.hist + j * len(lay.signals) + s_idx] for j in range(k)]
-        samples[sig] = np.array([y_now[sig], *past])
+    comps = {c.name: c for c in scheme.components}
+    # samples[name][i]: outputs of `name` at its communication point t_n - i h_name
+    samples = {c.name: z[lay.samples[c.name]].reshape(k + 1, len(c.outputs)) for c in scheme.components}
     out = z.copy()
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
         x, f1, f2, delta = out[sx], out[s1], out[s2], out[sd]  # views into out
-        drivers = [_driver(scheme, c.name, name) for name in c.inputs]
+        columns = []
+        for name in c.inputs:
+            d = _driver(scheme, c.name, name)
+            src = comps[d[0]] if d else None
+            columns.append((samples[src.name][:, src.outputs.index(d[1])], src.step_ratio) if d else None)
         h_comm = big_h / c.step_ratio
         h = h_comm / c.substeps
+        new = []
         for j in range(c.step_ratio):
+            t_comm = j * h_comm  # step start, s after t_n
+            u0 = _inputs(columns, k, t_comm, big_h)
             for m in range(c.substeps):
-                s0 = (j * h_comm + m * h) / big_h  # solver step start, in macro steps
-
-                s_hold = j / c.step_ratio if scheme.inputs == "hold" else None
-                u_of_t = _input_function(k, samples, drivers, s0, h / big_h, s_hold)
+                t0 = t_comm + m * h
+                if scheme.inputs == "hold":
+                    u_of_t = _constant(u0)
+                else:
+                    u_of_t = _polynomial(columns, k, t0, h, big_h)
                 _solver_step(c, h, x, f1, f2, delta, u_of_t)
-    for s_idx, sig in enumerate(lay.signals):
-        hist = [y_now[sig]] + [z[lay.hist + j * len(lay.signals) + s_idx] for j in range(k - 1)]
-        for j in range(k):
-            out[lay.hist + j * len(lay.signals) + s_idx] = hist[j]
+            new.append(c.c @ x + (c.d @ u0 if len(u0) else 0.0))
+        hist = np.vstack([np.array(new[::-1]).reshape(-1, len(c.outputs)), samples[c.name]])[: k + 1]
+        out[lay.samples[c.name]] = hist.ravel()
     return out
+
+
+def _constant(u0: np.ndarray):
+    return lambda theta: u0
+
+
+def _polynomial(columns: list, k: int, t0: float, h: float, big_h: float):
+    return lambda theta: _inputs(columns, k, t0 + theta * h, big_h)
 
 
 def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:

@@ -60,37 +60,53 @@ def split_scheme(
     step_ratios: tuple[int, int] = (1, 1),
     substeps: tuple[int, int] = (1, 1),
     inputs: str = "hold",
+    split: str = "displacement",
 ):
     """The benchmark's co-simulation split as a linear scheme (see master.evidence.linear).
 
-    mass1: states (x1, v1), input F, outputs x1, v1.
-    mass2: states (x2, v2), inputs x1, v1, output F = cc (x2 - x1) + dc (v2 - v1) (feedthrough).
+    split "displacement": two alike components, each one mass with its own spring and the
+    coupling spring-damper; each takes the other's position and velocity (no feedthrough).
+    mass1: states (x1, v1), inputs x_in, v_in (= x2, v2), outputs x, v; mass2 likewise.
+    split "force": mass1 takes the coupling force F; mass2 carries the coupling and outputs
+    F = cc (x2 - x1) + dc (v2 - v1), which feeds through from its inputs x1, v1.
     """
     from master.evidence.linear import LinearComponent, LinearScheme
 
+    def mass(name, m, c, d, cc, dc, inputs, outputs, i):
+        a = np.array([[0.0, 1.0], [-(c + cc) / m, -(d + dc) / m]])
+        b = np.array([[0.0, 0.0], [cc / m, dc / m]])
+        return dict(name=name, a=a, b=b, inputs=inputs, outputs=outputs, solver=solvers[i],
+                    step_ratio=step_ratios[i], substeps=substeps[i])  # fmt: skip
+
+    if split == "displacement":
+        io = (("x_in", "v_in"), ("x", "v"))
+        m1 = LinearComponent(
+            c=np.eye(2), d=np.zeros((2, 2)), **mass("mass1", p.m1, p.c1, p.d1, p.cc, p.dc, *io, 0)
+        )
+        m2 = LinearComponent(
+            c=np.eye(2), d=np.zeros((2, 2)), **mass("mass2", p.m2, p.c2, p.d2, p.cc, p.dc, *io, 1)
+        )
+        conns = (
+            ("mass1", "x", "mass2", "x_in"),
+            ("mass1", "v", "mass2", "v_in"),
+            ("mass2", "x", "mass1", "x_in"),
+            ("mass2", "v", "mass1", "v_in"),
+        )
+        return LinearScheme((m1, m2), conns, order=order, inputs=inputs)
+    if split != "force":
+        raise ValueError(f"unknown split {split!r}: 'displacement' or 'force'")
     m1 = LinearComponent(
-        "mass1",
-        a=np.array([[0.0, 1.0], [-p.c1 / p.m1, -p.d1 / p.m1]]),
-        b=np.array([[0.0], [1.0 / p.m1]]),
         c=np.eye(2),
         d=np.zeros((2, 1)),
-        inputs=("F",),
-        outputs=("x", "v"),
-        solver=solvers[0],
-        step_ratio=step_ratios[0],
-        substeps=substeps[0],
+        **{
+            **mass("mass1", p.m1, p.c1, p.d1, 0.0, 0.0, ("F",), ("x", "v"), 0),
+            "b": np.array([[0.0], [1.0 / p.m1]]),
+        },
     )
     m2 = LinearComponent(
-        "mass2",
-        a=np.array([[0.0, 1.0], [-(p.c2 + p.cc) / p.m2, -(p.d2 + p.dc) / p.m2]]),
-        b=np.array([[0.0, 0.0], [p.cc / p.m2, p.dc / p.m2]]),
         c=np.array([[p.cc, p.dc]]),
         d=np.array([[-p.cc, -p.dc]]),
-        inputs=("x_in", "v_in"),
-        outputs=("F",),
-        solver=solvers[1],
-        step_ratio=step_ratios[1],
-        substeps=substeps[1],
+        **mass("mass2", p.m2, p.c2, p.d2, p.cc, p.dc, ("x_in", "v_in"), ("F",), 1),
     )
     conns = (("mass1", "x", "mass2", "x_in"), ("mass1", "v", "mass2", "v_in"), ("mass2", "F", "mass1", "F"))
     return LinearScheme((m1, m2), conns, order=order, inputs=inputs)
