@@ -1,0 +1,144 @@
+"""The schedule: exact times, window selection (extrapolate vs interpolate), start-up, plan checks."""
+
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from master.fmu import VariableInfo
+from master.scenario.model import Component, Connection, Scenario, Stimulus
+from master.schedule import Capability, Clock, Link, PlanError, build_plan
+
+
+def var(name, causality, type_="Real"):
+    return VariableInfo(name, 0, type_, causality, "continuous", None, None, None, None)
+
+
+VARS = {
+    "a": {"y": var("y", "output"), "u": var("u", "input"), "n": var("n", "output", "Integer")},
+    "b": {"y": var("y", "output"), "u": var("u", "input"), "w": var("w", "input")},
+}
+
+
+def scene(**kw):
+    base = dict(
+        path=Path("scene.ssd"),
+        name="s",
+        components=(
+            Component("a", Path("a.fmu"), step_ratio=2),
+            Component("b", Path("b.fmu"), extrapolation_order=2),
+        ),
+        connections=(Connection("a", "y", "b", "u"), Connection("b", "y", "a", "u")),
+        start_time=Fraction(0),
+        stop_time=Fraction(1),
+        macro_step=Fraction(1, 10),
+    )
+    base.update(kw)
+    return Scenario(**base)
+
+
+def test_a_million_steps_end_exactly_at_the_stop_time():
+    start, H, k = Fraction(1, 10), Fraction(1, 3), 8
+    stop = start + 125_000 * H
+    plan = build_plan(scene(start_time=start, stop_time=stop, macro_step=H), VARS)
+    clock = Clock.make(start, H, k)
+    n_steps = plan.n_macro * k
+    assert n_steps == 10**6
+    assert clock.time(n_steps) == float(stop)
+    # every point is the float nearest to the exact rational; summing floats would drift
+    h = float(H / k)
+    t_sum = float(start)
+    for _ in range(n_steps):
+        t_sum += h
+    assert t_sum != float(stop)
+    for j in (1, 3, 999_999, 123_457):
+        assert clock.time(j) == float(start + j * H / k)
+        assert clock.exact(j) == start + j * H / k
+
+
+def test_window_jacobi_uses_only_samples_up_to_the_macro_point():
+    lk = Link("a", "b", ("y",), ("u",), 2, False, k_source=3, k_consumer=2)
+    for n in range(5):
+        for j in range(2 * n, 2 * n + 2):
+            j_end, p = lk.window(n, j)
+            assert j_end == 3 * n
+            assert p == min(2, 3 * n)
+
+
+def test_window_gauss_seidel_interpolates_over_the_consumer_step():
+    # source 4 steps per macro step, consumer 2: consumer step j covers source samples 2j .. 2j+2
+    lk = Link("a", "b", ("y",), ("u",), 1, True, k_source=4, k_consumer=2)
+    n = 3
+    for j in (6, 7):
+        j_end, p = lk.window(n, j)
+        assert j_end == 2 * (j + 1)  # first source sample at/after the consumer step's end
+        assert j_end <= 4 * (n + 1)
+        assert p == 1
+    # slower source: only samples up to the macro end exist
+    lk = Link("a", "b", ("y",), ("u",), 0, True, k_source=1, k_consumer=3)
+    assert [lk.window(2, j)[0] for j in (6, 7, 8)] == [3, 3, 3]
+
+
+def test_startup_lowers_the_order_until_history_exists():
+    lk = Link("a", "b", ("y",), ("u",), 3, False, k_source=1, k_consumer=1)
+    assert lk.startup() == [(0, 0), (1, 1), (2, 2)]
+    lk = Link("a", "b", ("y",), ("u",), 3, False, k_source=2, k_consumer=1)
+    assert lk.startup() == [(0, 0), (1, 2)]
+    plan = build_plan(scene(), VARS)
+    assert any("start-up" in n and "full order 2" in n for n in plan.notes)
+
+
+def test_plan_links_orders_and_recording():
+    sc = scene(
+        coupling="gauss-seidel",
+        order=("b", "a"),
+        connections=(Connection("a", "y", "b", "u", extrapolation_order=3), Connection("b", "y", "a", "u")),
+        stimuli=(Stimulus("b", "w", "step", (0.5,), (1.0,)),),
+        record_interval=Fraction(3, 10),
+    )
+    plan = build_plan(sc, VARS)
+    assert [c.name for c in plan.components] == ["b", "a"]
+    by = {(lk.source, lk.consumer): lk for lk in plan.links}
+    assert by[("a", "b")].order == 3 and not by[("a", "b")].source_first
+    assert by[("b", "a")].order == 0 and by[("b", "a")].source_first
+    assert plan.record == (("a", "y"), ("a", "n"), ("b", "y"))  # all outputs by default
+    assert plan.record_every == 3
+    assert plan.component("a").step == Fraction(1, 20)
+
+
+def test_interpolate_inputs_steps_once_per_macro_step_only_if_the_fmu_can():
+    comps = (
+        Component("a", Path("a.fmu"), step_ratio=4, interpolate_inputs=True),
+        Component("b", Path("b.fmu")),
+    )
+    plan = build_plan(scene(components=comps), VARS, {"a": Capability(True)})
+    assert plan.component("a").ratio == 1 and plan.component("a").interpolate_inputs
+    plan = build_plan(scene(components=comps), VARS, {"a": Capability(False)})
+    assert plan.component("a").ratio == 4
+    assert any("cannot interpolate inputs" in n for n in plan.notes)
+
+
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        (dict(stop_time=Fraction(21, 20)), "not a whole number of macro steps"),
+        (dict(connections=(Connection("a", "y", "b", "nope"),)), "has no variable 'nope'"),
+        (dict(connections=(Connection("a", "u", "b", "u"),)), "a.u has causality input, output needed"),
+        (dict(connections=(Connection("a", "y", "b", "u"), Connection("b", "y", "b", "u"))), "driven twice"),
+        (dict(connections=(Connection("a", "n", "b", "u"),)), "only Real signals"),
+        (dict(connections=(Connection("x", "y", "b", "u"),)), "no component 'x'"),
+        (dict(record_interval=Fraction(1, 20)), "multiple of the macro step"),
+        (dict(record=(("a", "zz"),)), "record a.zz"),
+        (dict(stimuli=(Stimulus("a", "u", "step", (0.5,), (1.0,)),)), "already driven"),
+        (
+            dict(components=(Component("a", Path("a.fmu"), step_ratio=0), Component("b", Path("b.fmu")))),
+            "step ratio",
+        ),
+        (dict(coupling="gauss-seidel", order=("a",)), "must list each component once"),
+    ],
+)
+def test_bad_scenarios_get_clear_errors(kw, message):
+    with pytest.raises(PlanError) as e:
+        build_plan(scene(**kw), VARS)
+    assert "scene.ssd" in str(e.value)
+    assert message in str(e.value)
