@@ -1,0 +1,20 @@
+"""Scenario files: SSP 1.0 (.ssd / .ssp with .ssv parameter sets) plus the master's settings
+annotation, read into a validated, immutable `Scenario`.  Format: docs/scenario-format.md."""
+
+from .model import Component, Connection, Scenario, Stimulus, Value
+from .problems import Problem, ScenarioError
+from .reader import load, parse_time, read, validate
+
+__all__ = [
+    "Component",
+    "Connection",
+    "Problem",
+    "Scenario",
+    "ScenarioError",
+    "Stimulus",
+    "Value",
+    "load",
+    "parse_time",
+    "read",
+    "validate",
+]

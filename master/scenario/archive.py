@@ -1,0 +1,84 @@
+"""Safe extraction of .ssp archives into a per-archive cache folder."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import stat
+import tempfile
+import zipfile
+from pathlib import Path, PurePosixPath
+
+from .problems import Problems
+
+SSD_NAME = "SystemStructure.ssd"
+MAX_UNPACKED_BYTES = 2 << 30  # 2 GiB: a larger archive is more likely a zip bomb than a scene
+
+
+def cache_root() -> Path:
+    """Where archives are unpacked: $MULTIRATE_MASTER_CACHE or <tmp>/multirate-master-ssp."""
+    env = os.environ.get("MULTIRATE_MASTER_CACHE")
+    return Path(env) if env else Path(tempfile.gettempdir()) / "multirate-master-ssp"
+
+
+def _unsafe(info: zipfile.ZipInfo) -> str | None:
+    """Why a member may not be extracted, or None if it is safe."""
+    name = info.filename
+    if "\\" in name:
+        return "backslash in member path"
+    if name.startswith("/") or PurePosixPath(name).is_absolute() or (len(name) > 1 and name[1] == ":"):
+        return "absolute member path"
+    if ".." in PurePosixPath(name).parts:
+        return "member path escapes the archive ('..')"
+    mode = info.external_attr >> 16
+    if stat.S_ISLNK(mode):
+        return "symbolic link member"
+    return None
+
+
+def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
+    """Unpack `archive` (checked member by member) and return the folder holding its
+    SystemStructure.ssd, or None after adding problems.  Nothing is written if any
+    member is unsafe.  The folder is keyed by the archive's SHA-256, so it is reused."""
+    try:
+        digest = hashlib.sha256(archive.read_bytes()).hexdigest()[:20]
+        zf = zipfile.ZipFile(archive)
+    except (OSError, zipfile.BadZipFile) as err:
+        problems.add(shown, None, "archive", f"not a readable .ssp (zip) archive: {err}")
+        return None
+    with zf:
+        members = zf.infolist()
+        bad = False
+        for info in members:
+            reason = _unsafe(info)
+            if reason:
+                problems.add(shown, None, f'member "{info.filename}"', f"rejected: {reason}")
+                bad = True
+        if bad:
+            return None
+        if sum(i.file_size for i in members) > MAX_UNPACKED_BYTES:
+            problems.add(shown, None, "archive", f"unpacks to more than {MAX_UNPACKED_BYTES} bytes")
+            return None
+        if SSD_NAME not in zf.namelist():
+            problems.add(shown, None, "archive", f"has no {SSD_NAME} at its root")
+            return None
+        target = cache_root() / digest
+        if (target / SSD_NAME).is_file():
+            return target
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=".unpack-", dir=target.parent))
+        try:
+            for info in members:
+                zf.extract(info, staging)
+            try:
+                staging.rename(target)  # atomic: concurrent loaders never see half an archive
+            except OSError:
+                if not (target / SSD_NAME).is_file():
+                    raise
+        except (OSError, zipfile.BadZipFile) as err:
+            problems.add(shown, None, "archive", f"cannot unpack: {err}")
+            return None
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+        return target

@@ -1,0 +1,164 @@
+"""Parameter values: SSP parameter bindings (.ssv files and inline sets) and command-line overrides.
+
+Precedence, lowest first (a later value replaces an earlier one for the same variable):
+1. bindings on an ssd:Component: those with source= (.ssv files) in document order,
+   then inline ssd:ParameterValues in document order;
+2. bindings on the ssd:System (names "component.variable"), in the same order;
+3. overrides ("component.variable" -> text, the CLI's --set).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from lxml import etree
+
+from . import xmlio
+from .context import Context
+from .model import Value
+from .problems import NS_SSD, NS_SSV, Problems
+from .values import BadValue, from_ssv, from_string, settable
+from .xmlio import tag
+
+PARAMETER_SET = "application/x-ssp-parameter-set"
+
+# (component or None, name, value element, file shown in problems) as found, in precedence order
+Entry = tuple[str | None, str, etree._Element, str]
+
+
+def read(ctx: Context, system: etree._Element, overrides: dict[str, str]) -> dict[str, dict[str, Value]]:
+    """component -> {variable: value} after every binding and override, checked."""
+    params: dict[str, dict[str, Value]] = {name: {} for name in ctx.comps}
+    levels = [(c.name, c.elem) for c in ctx.comps.values()] + [(None, system)]
+    for comp, holder in levels:
+        for entry in _entries(ctx, comp, holder):
+            _apply(ctx, params, entry)
+    for key, text in overrides.items():
+        _override(ctx, params, key, text)
+    return params
+
+
+def _entries(ctx: Context, comp: str | None, holder: etree._Element) -> list[Entry]:
+    """The parameters bound on one element: file sources first, then inline sets."""
+    from_files: list[Entry] = []
+    inline: list[Entry] = []
+    for binding in holder.findall(f"{tag(NS_SSD, 'ParameterBindings')}/{tag(NS_SSD, 'ParameterBinding')}"):
+        if binding.get("type", PARAMETER_SET) != PARAMETER_SET:
+            ctx.at(binding, f'type "{binding.get("type")}" is not supported (only {PARAMETER_SET})')
+            continue
+        if binding.find(tag(NS_SSD, "ParameterMapping")) is not None:
+            ctx.at(binding, "ssd:ParameterMapping is not supported: name the parameters as the FMU does")
+        if binding.get("sourceBase", "SSD") != "SSD":
+            ctx.at(binding, 'sourceBase="component" is not supported: put the .ssv beside the .ssd')
+            continue
+        prefix = binding.get("prefix", "")
+        source = binding.get("source")
+        values = binding.find(tag(NS_SSD, "ParameterValues"))
+        if source is not None and values is not None:
+            ctx.at(binding, "give either source= or inline ssd:ParameterValues, not both")
+            continue
+        if source is not None:
+            found = _ssv_file(ctx, binding, source)
+            if found is not None:
+                pset, shown = found
+                from_files += [(comp, prefix + n, v, shown) for n, v in _parameters(pset)]
+        elif values is not None:
+            pset = values.find(tag(NS_SSV, "ParameterSet"))
+            if pset is None:
+                ctx.at(values, "must hold one ssv:ParameterSet")
+                continue
+            inline += [(comp, prefix + n, v, ctx.shown) for n, v in _parameters(pset)]
+        else:
+            ctx.at(binding, "has neither source= nor inline ssd:ParameterValues")
+    return from_files + inline
+
+
+def _ssv_file(ctx: Context, binding: etree._Element, source: str) -> tuple[etree._Element, str] | None:
+    """The checked ssv:ParameterSet of a .ssv file, and how problems name that file."""
+    if "://" in source or source.startswith("file:"):
+        ctx.at(binding, f'unsupported URI "{source}": use a path relative to the .ssd')
+        return None
+    path = (ctx.base / source).resolve()
+    if ctx.inside is not None and not path.is_relative_to(ctx.inside.resolve()):
+        ctx.at(binding, f'source "{source}" points outside the archive')
+        return None
+    shown = (
+        str(Path(ctx.shown).parent / source)
+        if ctx.inside is None
+        else f"{ctx.shown.rsplit('!/', 1)[0]}!/{source}"
+    )
+    if not path.is_file():
+        ctx.at(binding, f'parameter file "{source}" not found')
+        return None
+    problems = Problems()
+    tree = xmlio.parse(path, shown, problems)
+    if tree is not None and xmlio.check_schema(tree, xmlio.ssv_schema(), shown, problems):
+        root = tree.getroot()
+        if root.tag == tag(NS_SSV, "ParameterSet"):
+            return root, shown
+        problems.at(shown, root, "not an ssv:ParameterSet")
+    ctx.problems.items.extend(problems.items)
+    return None
+
+
+def _parameters(pset: etree._Element) -> list[tuple[str, etree._Element]]:
+    """(name, value element such as ssv:Real) of each ssv:Parameter of a set."""
+    found = []
+    for p in pset.findall(f"{tag(NS_SSV, 'Parameters')}/{tag(NS_SSV, 'Parameter')}"):
+        value = next((c for c in p if etree.QName(c).namespace == NS_SSV), None)
+        if p.get("name") is not None and value is not None:
+            found.append((p.get("name"), value))
+    return found
+
+
+def _apply(ctx: Context, params: dict[str, dict[str, Value]], entry: Entry) -> None:
+    comp, name, value_elem, shown = entry
+    param = value_elem.getparent()
+    if comp is None:
+        split = ctx.split_name(name)
+        if split is None:
+            ctx.problems.at(shown, param, f'"{name}" does not start with a component name and a dot')
+            return
+        comp, name = split
+    c = ctx.comps[comp]
+    if c.info is None:
+        return
+    var = c.info.variables.get(name)
+    if var is None:
+        ctx.problems.at(
+            shown, param, f'unknown variable: the FMU of {comp} ({c.info.path.name}) has no "{name}"'
+        )
+        return
+    why = settable(var)
+    if why:
+        ctx.problems.at(shown, param, f"cannot bind {comp}.{name}: {why}")
+        return
+    ssv_type = etree.QName(value_elem).localname
+    try:
+        params[comp][name] = from_ssv(var, ssv_type, value_elem.get("value", ""), value_elem.get("unit"))
+    except (BadValue, ValueError) as err:
+        ctx.problems.at(shown, param, f"{comp}.{name}: {err}")
+
+
+def _override(ctx: Context, params: dict[str, dict[str, Value]], key: str, text: str) -> None:
+    where = ("--set", None, key)
+    split = ctx.split_name(key)
+    if split is None:
+        ctx.problems.add(*where, "expected component.variable with a component of the scenario")
+        return
+    comp, name = split
+    c = ctx.comps[comp]
+    if c.info is None:
+        return
+    var = c.info.variables.get(name)
+    if var is None:
+        ctx.problems.add(*where, f'unknown variable: the FMU of {comp} ({c.info.path.name}) has no "{name}"')
+        return
+    why = settable(var)
+    if why:
+        ctx.problems.add(*where, f"cannot set {comp}.{name}: {why}")
+        return
+    try:
+        params[comp][name] = from_string(var, text)
+    except BadValue as err:
+        ctx.problems.add(*where, str(err))

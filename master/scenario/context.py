@@ -1,0 +1,59 @@
+"""State shared by the passes that read one scenario."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lxml import etree
+
+from .fmuinfo import FmuInfo, Var
+from .problems import Problems
+
+
+@dataclass
+class Comp:
+    """A component as read so far: its element, its FMU (None if unreadable), its connectors."""
+
+    name: str
+    elem: etree._Element
+    info: FmuInfo | None
+    connectors: dict[str, etree._Element] = field(default_factory=dict)
+
+
+@dataclass
+class Context:
+    problems: Problems
+    shown: str  # how problems name the .ssd (inside an archive: "x.ssp!/SystemStructure.ssd")
+    base: Path  # folder of the .ssd: relative sources resolve against it
+    inside: Path | None  # unpacked archive: relative sources must stay inside it
+    comps: dict[str, Comp] = field(default_factory=dict)
+    # input (component, variable) -> the connection element driving it
+    driven: dict[tuple[str, str], etree._Element] = field(default_factory=dict)
+
+    def at(self, elem: etree._Element, message: str) -> None:
+        """A problem at an element of the .ssd."""
+        self.problems.at(self.shown, elem, message)
+
+    def variable(self, comp: str, name: str, elem: etree._Element, what: str = "variable") -> Var | None:
+        """The FMU variable `comp`.`name`, or None after reporting an unknown component or variable.
+
+        Silent (None) if the component exists but its FMU could not be read: that is reported once."""
+        c = self.comps.get(comp)
+        if c is None:
+            self.at(elem, f'unknown component "{comp}"')
+            return None
+        if c.info is None:
+            return None
+        var = c.info.variables.get(name)
+        if var is None:
+            self.at(elem, f'unknown {what}: the FMU of {comp} ({c.info.path.name}) has no variable "{name}"')
+        return var
+
+    def split_name(self, dotted: str) -> tuple[str, str] | None:
+        """'component.variable' -> (component, variable), matching the longest component name."""
+        best = None
+        for name in self.comps:
+            if dotted.startswith(name + ".") and (best is None or len(name) > len(best)):
+                best = name
+        return (best, dotted[len(best) + 1 :]) if best is not None else None

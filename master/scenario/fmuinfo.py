@@ -1,0 +1,150 @@
+"""What the checks need to know about an FMU, read from its modelDescription.xml.
+
+FMI 2.0 and 3.0 are both read by fmpy; their type names differ (Real vs Float64,
+Integer vs Int32), so types are compared through `type_class`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import fmpy
+
+import master
+
+PROJECT_SCHEME = "project:"
+
+# FMI 2 names -> their FMI 3 equivalents, so both versions compare alike.
+_SAME_TYPE = {"Real": "Float64", "Integer": "Int32"}
+NUMERIC = {"Float64", "Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
+FLOATS = {"Float64", "Float32"}
+
+
+def type_class(fmi_type: str) -> str:
+    """The FMI 3 name of a variable type ('Real' -> 'Float64')."""
+    return _SAME_TYPE.get(fmi_type, fmi_type)
+
+
+@dataclass(frozen=True)
+class Var:
+    """One model variable, as the checks see it."""
+
+    name: str
+    type: str  # as the FMU spells it: Real, Float64, Integer, Boolean, Enumeration, ...
+    causality: str  # parameter, calculatedParameter, structuralParameter, input, output, local, independent
+    variability: str
+    initial: str | None
+    unit: str | None
+    start: str | None
+    min: str | None
+    max: str | None
+    items: tuple[tuple[str, int], ...] = ()  # Enumeration items (name, value)
+
+    @property
+    def kind(self) -> str:
+        """Version independent type name: Float64, Int32, Boolean, String, Enumeration, ..."""
+        return type_class(self.type)
+
+
+@dataclass(frozen=True)
+class FmuInfo:
+    path: Path
+    fmi_version: str
+    variables: dict[str, Var]
+    feedthrough: dict[str, frozenset[str]]  # output name -> inputs it depends on directly
+    co_simulation: bool
+    can_interpolate_inputs: bool
+
+
+def project_fmus_dir() -> Path:
+    """The project's FMU sources: fmus/ beside the master package."""
+    return Path(master.__file__).resolve().parents[1] / "fmus"
+
+
+class SourceError(Exception):
+    """A component source that does not lead to an FMU."""
+
+
+def resolve_source(source: str, base: Path, inside: Path | None = None) -> Path:
+    """The .fmu file a component's source attribute names.
+
+    1. "project:NAME": the project's FMU NAME (fmus/NAME), built if missing or stale.
+    2. otherwise a path relative to the folder of the .ssd (`base`); used if that file exists.
+    3. otherwise a bare NAME (no '/', no suffix) with fmus/NAME present: as in 1.
+    `inside`: for unpacked archives, the folder a relative path may not leave.
+    """
+    if source.startswith(PROJECT_SCHEME):
+        return _project(source[len(PROJECT_SCHEME) :])
+    if "://" in source or source.startswith("file:"):
+        raise SourceError(f'unsupported URI "{source}": use a relative path or project:NAME')
+    candidate = (base / source).resolve()
+    if inside is not None and not candidate.is_relative_to(inside.resolve()):
+        raise SourceError(f'source "{source}" points outside the archive')
+    if candidate.is_file():
+        return candidate
+    bare = "/" not in source and "." not in source
+    if bare and (project_fmus_dir() / source).is_dir():
+        return _project(source)
+    raise SourceError(f'FMU file "{source}" not found (looked for {candidate})')
+
+
+def _project(name: str) -> Path:
+    if not name or "/" in name or not (project_fmus_dir() / name).is_dir():
+        raise SourceError(f'no project FMU "{name}" (no folder {project_fmus_dir() / name})')
+    from master import fmubuild  # built on demand, only when a scenario asks for it
+
+    try:
+        return Path(fmubuild.fmu_path(name))
+    except Exception as err:  # a failed C build: report it as a problem of this component
+        raise SourceError(f'cannot build project FMU "{name}": {err}') from err
+
+
+def read(path: Path) -> FmuInfo:
+    """Read an FMU's model description (cached while the file is unchanged).
+
+    Raises SourceError with fmpy's reason if the FMU cannot be read."""
+    st = path.stat()
+    return _read(path.resolve(), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
+    try:
+        md = fmpy.read_model_description(str(path))
+    except Exception as err:  # fmpy raises plain Exceptions for invalid descriptions
+        raise SourceError(f"cannot read the modelDescription.xml of {path.name}: {err}") from err
+    variables: dict[str, Var] = {}
+    for v in md.modelVariables:
+        declared = v.declaredType
+        items = tuple((i.name, int(i.value)) for i in declared.items) if declared is not None else ()
+        variables[v.name] = Var(
+            name=v.name,
+            type=v.type,
+            causality=v.causality or "local",
+            variability=v.variability or "continuous",
+            initial=v.initial,
+            unit=v.unit or (declared.unit if declared is not None else None),
+            start=v.start,
+            min=v.min if v.min is not None else (declared.min if declared is not None else None),
+            max=v.max if v.max is not None else (declared.max if declared is not None else None),
+            items=items,
+        )
+    inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
+    feedthrough: dict[str, frozenset[str]] = {
+        n: inputs for n, v in variables.items() if v.causality == "output"
+    }
+    for unknown in md.outputs:
+        if unknown.variable is None or unknown.dependencies is None:
+            continue  # no dependencies attribute: depends on all inputs (kept from above)
+        feedthrough[unknown.variable.name] = frozenset(d.name for d in unknown.dependencies) & inputs
+    cs = md.coSimulation
+    return FmuInfo(
+        path=path,
+        fmi_version=md.fmiVersion,
+        variables=variables,
+        feedthrough=feedthrough,
+        co_simulation=cs is not None,
+        can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
+    )

@@ -1,0 +1,323 @@
+"""Reading a scenario (.ssd or .ssp) into a validated `Scenario`, or into the list of its problems.
+
+Passes, each reporting every problem it finds and going on where it can:
+XML syntax -> schemas (SSP 1.0 + our settings) -> components and their FMUs -> connectors ->
+connections -> settings annotation -> parameter bindings and overrides -> undriven inputs ->
+algebraic loops.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from pathlib import Path
+
+from lxml import etree
+
+from . import archive, bindings, fmuinfo, loops, settings, xmlio
+from .context import Comp, Context
+from .fmuinfo import FLOATS, SourceError
+from .model import Component, Connection, Scenario
+from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError
+from .xmlio import tag
+
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+# ssd:Connector kind -> FMU causalities it may stand for
+KIND_CAUSALITY = {
+    "input": {"input"},
+    "output": {"output"},
+    "parameter": {"parameter", "structuralParameter"},
+    "calculatedParameter": {"calculatedParameter"},
+}
+# ssc type element of a connector -> FMU types it may stand for (FMI 3 names, see fmuinfo.type_class)
+CONNECTOR_TYPES = {
+    "Real": FLOATS,
+    "Integer": {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"},
+    "Boolean": {"Boolean"},
+    "String": {"String"},
+    "Enumeration": {"Enumeration"},
+    "Binary": {"Binary"},
+}
+
+
+def load(path: str | Path, overrides: dict[str, str] | None = None) -> Scenario:
+    """Read and check a scenario; raise ScenarioError listing every problem if it is not runnable.
+
+    overrides: "component.variable" -> value string (the CLI's --set), applied last."""
+    scenario, problems = read(path, overrides)
+    if problems or scenario is None:
+        raise ScenarioError(problems)
+    return scenario
+
+
+def validate(path: str | Path, overrides: dict[str, str] | None = None) -> list[Problem]:
+    """Every problem of a scenario at once (empty: it loads).  Never raises for bad input."""
+    return read(path, overrides)[1]
+
+
+def read(path: str | Path, overrides: dict[str, str] | None = None) -> tuple[Scenario | None, list[Problem]]:
+    """The scenario (None if it cannot be built) and the problems found."""
+    path = Path(path)
+    problems = Problems()
+    scenario = _read(path, overrides or {}, problems)
+    return (scenario if not problems.items else None), problems.items
+
+
+def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario | None:
+    shown = str(path)
+    if not path.is_file():
+        problems.add(shown, None, "scenario", "no such file")
+        return None
+    inside = None
+    ssd = path
+    if path.suffix.lower() == ".ssp":
+        inside = archive.extract(path, shown, problems)
+        if inside is None:
+            return None
+        ssd = inside / archive.SSD_NAME
+        shown = f"{path}!/{archive.SSD_NAME}"
+    tree = xmlio.parse(ssd, shown, problems)
+    if tree is None:
+        return None
+    root = tree.getroot()
+    if root.tag != tag(NS_SSD, "SystemStructureDescription"):
+        problems.at(shown, root, "not an SSP 1.0 ssd:SystemStructureDescription")
+        return None
+    xmlio.check_schema(tree, xmlio.ssd_schema(), shown, problems)
+    system = root.find(tag(NS_SSD, "System"))
+    if system is None:
+        return None  # the schema check has said so
+    ctx = Context(problems, shown, ssd.parent, inside)
+
+    _components(ctx, system)
+    connections = _connections(ctx, system)
+    times = _experiment(ctx, root)
+    setup = settings.read(ctx, root, system, connections, times)
+    params = bindings.read(ctx, system, overrides)
+    _undriven(ctx, setup, params)
+    loops.check(ctx, connections)
+    if problems.items or setup is None or times is None:
+        return None
+
+    start, stop = times
+    components = tuple(
+        Component(
+            name=c.name,
+            fmu_path=c.info.path,
+            parameters=params.get(c.name, {}),
+            step_ratio=setup.step_ratio[c.name],
+            extrapolation_order=setup.extrapolation_order[c.name],
+            interpolate_inputs=setup.interpolate_inputs[c.name],
+            group=setup.group.get(c.name),
+        )
+        for c in ctx.comps.values()
+        if c.info is not None
+    )
+    final = tuple(
+        Connection(*key, extrapolation_order=setup.connection_order.get(key[2:]))
+        for key in (k for k, _ in connections)
+    )
+    return Scenario(
+        path=path.resolve(),
+        name=root.get("name", ""),
+        components=components,
+        connections=final,
+        start_time=start,
+        stop_time=stop,
+        macro_step=setup.macro_step,
+        coupling=setup.coupling,
+        order=setup.order,
+        stimuli=setup.stimuli,
+        record=setup.record,
+        record_interval=setup.record_interval,
+    )
+
+
+def _components(ctx: Context, system: etree._Element) -> None:
+    """Components, their FMUs and their declared connectors."""
+    elements = system.find(tag(NS_SSD, "Elements"))
+    for elem in elements if elements is not None else ():
+        local = etree.QName(elem).localname
+        if local == "System":
+            ctx.at(elem, "nested systems are not supported: flatten the scene into one ssd:System")
+            continue
+        if local != "Component":
+            ctx.at(elem, f"ssd:{local} is not supported")
+            continue
+        name = elem.get("name")
+        if name is None:
+            continue  # schema error already
+        if name in ctx.comps:
+            ctx.at(elem, f'a second component named "{name}"')
+            continue
+        ctx.comps[name] = comp = Comp(name, elem, _fmu(ctx, elem))
+        for conn in elem.findall(f"{tag(NS_SSD, 'Connectors')}/{tag(NS_SSD, 'Connector')}"):
+            _connector(ctx, comp, conn)
+
+
+def _fmu(ctx: Context, elem: etree._Element) -> fmuinfo.FmuInfo | None:
+    if elem.get("type", FMU_TYPE) != FMU_TYPE:
+        ctx.at(elem, f'type "{elem.get("type")}" is not supported: components must be FMUs ({FMU_TYPE})')
+        return None
+    if elem.get("implementation") == "ModelExchange":
+        ctx.at(elem, 'implementation="ModelExchange" is not supported: the master runs co-simulation FMUs')
+        return None
+    source = elem.get("source")
+    if source is None:
+        return None
+    try:
+        info = fmuinfo.read(fmuinfo.resolve_source(source, ctx.base, ctx.inside))
+    except SourceError as err:
+        ctx.at(elem, str(err))
+        return None
+    if not info.co_simulation:
+        ctx.at(elem, f"{info.path.name} has no co-simulation interface")
+        return None
+    return info
+
+
+def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
+    name, kind = conn.get("name"), conn.get("kind")
+    if name is None:
+        return
+    if name in comp.connectors:
+        ctx.at(conn, f'a second connector "{name}" on component {comp.name}')
+        return
+    comp.connectors[name] = conn
+    var = ctx.variable(comp.name, name, conn)
+    if var is None:
+        return
+    allowed = KIND_CAUSALITY.get(kind or "")
+    if allowed is None:
+        ctx.at(conn, f'kind "{kind}" has no FMI counterpart')
+    elif var.causality not in allowed:
+        ctx.at(conn, f'kind "{kind}" but {comp.name}.{name} has causality {var.causality} in the FMU')
+    for typed in conn:
+        if etree.QName(typed).namespace != NS_SSC:
+            continue
+        declared = etree.QName(typed).localname
+        if var.kind not in CONNECTOR_TYPES.get(declared, set()):
+            ctx.at(conn, f"type mismatch: connector is ssc:{declared}, {comp.name}.{name} is {var.type}")
+        unit = typed.get("unit")
+        if unit and var.unit and unit != var.unit:
+            ctx.at(conn, f'unit mismatch: connector in "{unit}", {comp.name}.{name} in "{var.unit}"')
+
+
+def _connections(
+    ctx: Context, system: etree._Element
+) -> list[tuple[tuple[str, str, str, str], etree._Element]]:
+    """Checked connections: ((start comp, output, end comp, input), element)."""
+    good = []
+    for elem in system.findall(f"{tag(NS_SSD, 'Connections')}/{tag(NS_SSD, 'Connection')}"):
+        se, sc, ee, ec = (
+            elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
+        )
+        if sc is None or ec is None:
+            continue  # schema error already
+        if se is None or ee is None:
+            ctx.at(elem, "connections to the system's own connectors are not supported")
+            continue
+        for child in elem:
+            if etree.QName(child).localname not in ("ConnectionGeometry", "Annotations"):
+                ctx.at(
+                    elem, f"{xmlio.qualified(child.tag)}: transformations on connections are not supported"
+                )
+        out = _end(ctx, elem, se, sc)
+        inp = _end(ctx, elem, ee, ec)
+        ok = out is not None and inp is not None
+        if out is not None and out.causality != "output":
+            ctx.at(
+                elem, f"start {se}.{sc} is {_a(out.causality)}, not an output: connections go output -> input"
+            )
+            ok = False
+        if inp is not None and inp.causality != "input":
+            ctx.at(
+                elem, f"end {ee}.{ec} is {_a(inp.causality)}, not an input: connections go output -> input"
+            )
+            ok = False
+        if out is not None and inp is not None and out.kind != inp.kind:
+            ctx.at(elem, f"type mismatch: {se}.{sc} is {out.type}, {ee}.{ec} is {inp.type}")
+            ok = False
+        if out is not None and inp is not None and out.unit and inp.unit and out.unit != inp.unit:
+            ctx.at(
+                elem,
+                f'unit mismatch: {se}.{sc} is in "{out.unit}", {ee}.{ec} in "{inp.unit}"'
+                " (unit conversion is not supported)",
+            )
+            ok = False
+        first = ctx.driven.get((ee, ec))
+        if first is not None and inp is not None and inp.causality == "input":
+            ctx.at(elem, f"{ee}.{ec} is already driven by the connection on line {first.sourceline}")
+            continue
+        if ok:
+            ctx.driven[(ee, ec)] = elem
+            good.append(((se, sc, ee, ec), elem))
+    return good
+
+
+def _a(causality: str) -> str:
+    return f"an {causality}" if causality[0] in "aeiou" else f"a {causality}"
+
+
+def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuinfo.Var | None:
+    """The FMU variable at one end of a connection (which must be a declared connector)."""
+    c = ctx.comps.get(comp)
+    if c is None:
+        ctx.at(elem, f'unknown component "{comp}"')
+        return None
+    if connector not in c.connectors:
+        known = c.info is not None and connector in c.info.variables
+        hint = f"; declare it in the ssd:Connectors of {comp}" if known else ""
+        ctx.at(elem, f'component {comp} has no connector "{connector}"{hint}')
+        return None
+    var = ctx.variable(comp, connector, elem)
+    return var
+
+
+def parse_time(text: str) -> Fraction:
+    """An exact time from a decimal string ("0.0002" -> 1/5000); never through a float.
+
+    Raises ValueError for text that is not a finite decimal number."""
+    return Fraction(text.strip())
+
+
+def _experiment(ctx: Context, root: etree._Element) -> tuple[Fraction, Fraction] | None:
+    """(startTime, stopTime) of ssd:DefaultExperiment; stopTime is required, startTime defaults to 0."""
+    exp = root.find(tag(NS_SSD, "DefaultExperiment"))
+    if exp is None:
+        ctx.at(root, "no ssd:DefaultExperiment: its stopTime is required")
+        return None
+    times = []
+    for attr, default in (("startTime", "0"), ("stopTime", None)):
+        text = exp.get(attr, default)
+        if text is None:
+            ctx.at(exp, f"{attr} is required")
+            return None
+        try:
+            times.append(parse_time(text))
+        except ValueError:
+            ctx.at(exp, f'{attr} "{text}" is not a finite decimal number of seconds')
+            return None
+    start, stop = times
+    if stop <= start:
+        ctx.at(exp, f"stopTime {float(stop):g} s is not after startTime {float(start):g} s")
+        return None
+    return start, stop
+
+
+def _undriven(ctx: Context, setup: settings.Settings | None, params: dict[str, dict]) -> None:
+    """An input that no connection or stimulus drives keeps its start value (or a bound value);
+    without either it is an error."""
+    stimulated = {(s.component, s.variable) for s in setup.stimuli} if setup is not None else set()
+    for c in ctx.comps.values():
+        if c.info is None:
+            continue
+        for var in c.info.variables.values():
+            key = (c.name, var.name)
+            if var.causality != "input" or key in ctx.driven or key in stimulated:
+                continue
+            if var.start is None and var.name not in params.get(c.name, {}):
+                ctx.at(
+                    c.elem,
+                    f"input {var.name} is not driven by any connection or stimulus and has no start"
+                    " value: connect it, give it a stimulus or bind a value to it",
+                )

@@ -1,0 +1,293 @@
+"""The master's own settings: one ssc:Annotation of type "org.multirate-master.settings"
+holding one mm:Settings element (schema: master/schemas/multirate-settings.xsd).
+
+The schema has already checked every value's form; here the settings are checked against
+the scene: known components and connections, steps that divide the macro step, stimuli only
+on undriven inputs, a complete Gauss-Seidel order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from lxml import etree
+
+from .context import Context
+from .fmuinfo import FLOATS, NUMERIC
+from .model import Stimulus
+from .problems import NS_MM, NS_SSC, NS_SSD
+from .xmlio import tag
+
+ANNOTATION_TYPE = "org.multirate-master.settings"
+
+
+@dataclass
+class Settings:
+    macro_step: Fraction
+    coupling: str = "jacobi"
+    order: tuple[str, ...] = ()
+    step_ratio: dict[str, int] = field(default_factory=dict)
+    extrapolation_order: dict[str, int] = field(default_factory=dict)
+    interpolate_inputs: dict[str, bool] = field(default_factory=dict)
+    group: dict[str, str] = field(default_factory=dict)
+    connection_order: dict[tuple[str, str], int] = field(default_factory=dict)  # (comp, input) -> order
+    record: tuple[tuple[str, str], ...] = ()
+    record_interval: Fraction | None = None
+    stimuli: tuple[Stimulus, ...] = ()
+
+
+def _time(text: str | None) -> Fraction | None:
+    """A schema-checked time attribute as an exact rational (None if absent or malformed:
+    the schema check has reported malformed ones)."""
+    if text is None:
+        return None
+    try:
+        return Fraction(text.strip())
+    except ValueError:
+        return None
+
+
+def _int(text: str | None) -> int | None:
+    try:
+        return int(text) if text is not None else None
+    except ValueError:
+        return None
+
+
+def _bool(text: str | None) -> bool | None:
+    return None if text is None else text.strip() in ("true", "1")
+
+
+def find(ctx: Context, root: etree._Element, system: etree._Element) -> etree._Element | None:
+    """The one mm:Settings element; problems for none, several, or one in the wrong place."""
+    found = []
+    allowed = (system, root.find(tag(NS_SSD, "DefaultExperiment")))
+    for ann in root.iter(tag(NS_SSC, "Annotation")):
+        if ann.get("type") != ANNOTATION_TYPE:
+            continue
+        holder = ann.getparent().getparent()
+        if holder not in allowed:
+            ctx.at(ann, "the settings annotation belongs on ssd:System or ssd:DefaultExperiment")
+        elif found:
+            ctx.at(ann, f"a second settings annotation (the first is on line {found[0].sourceline})")
+        else:
+            found.append(ann)
+    if not found:
+        ctx.at(
+            root,
+            f'no ssc:Annotation type="{ANNOTATION_TYPE}" on ssd:System or ssd:DefaultExperiment:'
+            " the master needs at least its macroStep (see docs/scenario-format.md)",
+        )
+        return None
+    elem = found[0].find(tag(NS_MM, "Settings"))
+    if elem is None:
+        ctx.at(found[0], f"must hold one mm:Settings element in namespace {NS_MM}")
+    return elem
+
+
+def read(
+    ctx: Context,
+    root: etree._Element,
+    system: etree._Element,
+    connections: list[tuple[tuple[str, str, str, str], etree._Element]],
+    times: tuple[Fraction, Fraction] | None,
+) -> Settings | None:
+    """The checked settings, or None if the macro step is unusable (problems added)."""
+    elem = find(ctx, root, system)
+    if elem is None:
+        return None
+    macro = _time(elem.get("macroStep"))
+    if macro is None:
+        return None  # schema error already
+    if macro <= 0:
+        ctx.at(elem, "macroStep must be positive")
+        return None
+    s = Settings(macro_step=macro, coupling=elem.get("coupling", "jacobi"))
+    if times is not None:
+        span = times[1] - times[0]
+        if (span / macro).denominator != 1:
+            exp = root.find(tag(NS_SSD, "DefaultExperiment"))
+            ctx.at(
+                exp if exp is not None else elem,
+                f"stopTime - startTime = {_s(span)} is not a whole number of macro steps ({_s(macro)})",
+            )
+    _components(ctx, elem, s)
+    _order(ctx, elem, s)
+    _connections(ctx, elem, s, {key[2:] for key, _ in connections})
+    _record(ctx, elem, s)
+    _stimuli(ctx, elem, s)
+    return s
+
+
+def _s(t: Fraction) -> str:
+    """A time for messages: a decimal where it has a finite one, else the exact fraction."""
+    d = t.denominator
+    for p in (2, 5):
+        while d % p == 0:
+            d //= p
+    return f"{float(t):.15g} s" if d == 1 else f"{t} s"
+
+
+def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    default_order = _int(elem.get("extrapolationOrder", "0")) or 0
+    default_interp = _bool(elem.get("interpolateInputs", "false")) or False
+    seen: dict[str, etree._Element] = {}
+    for ce in elem.findall(tag(NS_MM, "Component")):
+        name = ce.get("name")
+        if name not in ctx.comps:
+            ctx.at(ce, f'unknown component "{name}"')
+            continue
+        if name in seen:
+            ctx.at(ce, f"{name} already has settings on line {seen[name].sourceline}")
+            continue
+        seen[name] = ce
+    for name, comp in ctx.comps.items():
+        ce = seen.get(name)
+        get = ce.get if ce is not None else (lambda _a, _d=None: _d)
+        s.step_ratio[name] = _ratio(ctx, ce, s.macro_step) if ce is not None else 1
+        s.extrapolation_order[name] = (
+            _int(get("extrapolationOrder")) if get("extrapolationOrder") else default_order
+        )
+        can = comp.info is not None and comp.info.can_interpolate_inputs
+        asked = _bool(get("interpolateInputs"))
+        if asked and comp.info is not None and not can:
+            ctx.at(
+                ce,
+                f"interpolateInputs: {comp.info.path.name} cannot interpolate inputs (canInterpolateInputs)",
+            )
+        # The global default only applies where the FMU can; an explicit request must be honoured.
+        s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
+        if get("group") is not None:
+            s.group[name] = get("group")
+
+
+def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
+    """The step ratio k (communication step = macro step / k) of one mm:Component."""
+    ratio, step = _int(ce.get("stepRatio")), _time(ce.get("communicationStep"))
+    if ratio is not None and ce.get("communicationStep") is not None:
+        ctx.at(ce, "give stepRatio or communicationStep, not both")
+        return ratio
+    if step is None:
+        return ratio or 1
+    if step <= 0:
+        ctx.at(ce, "communicationStep must be positive")
+        return 1
+    k = macro / step
+    if k.denominator != 1:
+        ctx.at(ce, f"communicationStep {_s(step)} does not divide the macro step {_s(macro)} (ratio {k})")
+        return 1
+    return int(k)
+
+
+def _order(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    text = elem.get("order")
+    if text is None:
+        # Gauss-Seidel without an order: document order of the components
+        s.order = tuple(ctx.comps) if s.coupling == "gauss-seidel" else ()
+        return
+    if s.coupling != "gauss-seidel":
+        ctx.at(elem, 'order is only meaningful with coupling="gauss-seidel"')
+        return
+    names = text.split()
+    for name in names:
+        if name not in ctx.comps:
+            ctx.at(elem, f'order: unknown component "{name}"')
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        ctx.at(elem, f"order: {', '.join(repeated)} listed more than once")
+    missing = [n for n in ctx.comps if n not in names]
+    if missing:
+        ctx.at(elem, f"order: must list every component once; missing {', '.join(missing)}")
+    s.order = tuple(names)
+
+
+def _connections(ctx: Context, elem: etree._Element, s: Settings, inputs: set[tuple[str, str]]) -> None:
+    for ce in elem.findall(tag(NS_MM, "Connection")):
+        key = (ce.get("endElement", ""), ce.get("endConnector", ""))
+        order = _int(ce.get("extrapolationOrder"))
+        if key not in inputs:
+            ctx.at(ce, f"no connection drives {key[0]}.{key[1]}")
+        elif key in s.connection_order:
+            ctx.at(ce, f"{key[0]}.{key[1]} has settings twice")
+        elif order is not None:
+            s.connection_order[key] = order
+
+
+def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    rec = elem.find(tag(NS_MM, "Record"))
+    if rec is None:
+        return
+    interval = _time(rec.get("interval"))
+    if interval is not None:
+        k = interval / s.macro_step
+        if interval <= 0 or k.denominator != 1:
+            ctx.at(
+                rec,
+                f"interval {_s(interval)} is not a positive multiple of the macro step {_s(s.macro_step)}",
+            )
+        else:
+            s.record_interval = interval
+    chosen = []
+    for ve in rec.findall(tag(NS_MM, "Variable")):
+        key = (ve.get("component", ""), ve.get("name", ""))
+        if ctx.variable(*key, ve) is not None:
+            if key in chosen:
+                ctx.at(ve, "recorded twice")
+            else:
+                chosen.append(key)
+    s.record = tuple(chosen)
+
+
+def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    holder = elem.find(tag(NS_MM, "Stimuli"))
+    found: dict[tuple[str, str], etree._Element] = {}
+    stimuli = []
+    for se in holder if holder is not None else ():
+        kind = etree.QName(se).localname.lower()
+        key = (se.get("component", ""), se.get("variable", ""))
+        var = ctx.variable(*key, se)
+        if var is None:
+            continue
+        ok = True
+        if var.causality != "input":
+            ctx.at(se, f"{key[0]}.{key[1]} is {var.causality}, not an input: stimuli drive inputs")
+            ok = False
+        elif key in ctx.driven:
+            line = ctx.driven[key].sourceline
+            ctx.at(
+                se,
+                f"{key[0]}.{key[1]} is driven by the connection on line {line}:"
+                " stimuli are for undriven inputs",
+            )
+            ok = False
+        if var.kind not in NUMERIC:
+            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: stimuli drive Real and Integer inputs")
+            ok = False
+        if key in found:
+            ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
+            ok = False
+        found[key] = se
+        times, values = [], []
+        for pe in se.findall(tag(NS_MM, "Point")):
+            try:
+                t, v = float(pe.get("time", "")), float(pe.get("value", ""))
+            except ValueError:
+                ok = False  # schema error already
+                continue
+            if not (math.isfinite(t) and math.isfinite(v)):
+                ctx.at(pe, "time and value must be finite numbers")
+                ok = False
+                continue
+            if times and t <= times[-1]:
+                ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
+                ok = False
+            if var.kind not in FLOATS and v != int(v):
+                ctx.at(pe, f"value {v:g} is not an integer ({key[0]}.{key[1]} is {var.type})")
+                ok = False
+            times.append(t)
+            values.append(v)
+        if ok and times:
+            stimuli.append(Stimulus(key[0], key[1], kind, tuple(times), tuple(values)))
+    s.stimuli = tuple(stimuli)

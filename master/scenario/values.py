@@ -1,0 +1,120 @@
+"""Turning parameter values (.ssv entries and --set strings) into values of an FMU variable's type."""
+
+from __future__ import annotations
+
+import math
+
+from .fmuinfo import FLOATS, Var
+from .model import Value
+
+SETTABLE_CAUSALITIES = {"parameter", "structuralParameter", "input"}
+_INT_RANGES = {
+    "Int8": (-(2**7), 2**7 - 1),
+    "UInt8": (0, 2**8 - 1),
+    "Int16": (-(2**15), 2**15 - 1),
+    "UInt16": (0, 2**16 - 1),
+    "Int32": (-(2**31), 2**31 - 1),
+    "UInt32": (0, 2**32 - 1),
+    "Int64": (-(2**63), 2**63 - 1),
+    "UInt64": (0, 2**64 - 1),
+}
+
+
+class BadValue(Exception):
+    """A value that does not fit the variable (message says why)."""
+
+
+def settable(var: Var) -> str | None:
+    """Why `var` cannot take a parameter binding, or None if it can.
+
+    SSP 1.0 / FMI: parameters and inputs that are not constant and whose start is not calculated."""
+    if var.causality not in SETTABLE_CAUSALITIES:
+        return f"it has causality {var.causality}; only parameters and inputs take values"
+    if var.variability == "constant":
+        return "it is a constant"
+    if var.initial == "calculated":
+        return "its start value is calculated"
+    return None
+
+
+def from_string(var: Var, text: str) -> Value:
+    """Convert a command-line string to `var`'s type (Enumeration: item name or number)."""
+    kind = var.kind
+    text = text.strip()
+    if kind in FLOATS:
+        try:
+            value = float(text)
+        except ValueError:
+            raise BadValue(f'"{text}" is not a number ({var.name} is {var.type})') from None
+        return check_range(var, value)
+    if kind in _INT_RANGES:
+        try:
+            return check_range(var, int(text))
+        except ValueError:
+            raise BadValue(f'"{text}" is not an integer ({var.name} is {var.type})') from None
+    if kind == "Boolean":
+        lowered = text.lower()
+        if lowered in ("true", "1"):
+            return True
+        if lowered in ("false", "0"):
+            return False
+        raise BadValue(f'"{text}" is not a Boolean (true, false, 1, 0)')
+    if kind == "Enumeration":
+        return enumeration(var, text)
+    if kind == "String":
+        return text
+    raise BadValue(f"{var.name} has type {var.type}, which parameters cannot set")
+
+
+def from_ssv(var: Var, ssv_type: str, text: str, unit: str | None) -> Value:
+    """Convert one ssv:Parameter value (already schema-valid for `ssv_type`) to `var`'s type."""
+    kind = var.kind
+    if ssv_type == "Real" and kind in FLOATS:
+        if unit and var.unit and unit != var.unit:
+            raise BadValue(f'unit mismatch: value in "{unit}", {var.name} is in "{var.unit}"')
+        return check_range(var, float(text))
+    if ssv_type == "Integer" and (kind in FLOATS or kind in _INT_RANGES):
+        number = int(text)
+        return check_range(var, float(number) if kind in FLOATS else number)
+    if ssv_type == "Integer" and kind == "Enumeration":
+        return enumeration(var, text)
+    if ssv_type == "Boolean" and kind == "Boolean":
+        return text.strip() in ("true", "1")
+    if ssv_type == "String" and kind == "String":
+        return text
+    if ssv_type == "Enumeration" and kind == "Enumeration":
+        return enumeration(var, text)
+    raise BadValue(f"type mismatch: ssv:{ssv_type} value for {var.name}, which is {var.type}")
+
+
+def enumeration(var: Var, text: str) -> int:
+    """An Enumeration value from an item name or its number."""
+    names = dict(var.items)
+    if text in names:
+        return names[text]
+    try:
+        number = int(text)
+    except ValueError:
+        number = None
+    if number is not None and (not names or number in names.values()):
+        return number
+    choices = ", ".join(f"{n}={v}" for n, v in var.items)
+    raise BadValue(f'"{text}" is not an item of {var.name} ({choices})')
+
+
+def check_range(var: Var, value: float | int) -> float | int:
+    """`value` if it is finite and inside [min, max] of `var` (and of its integer type)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise BadValue(f"{value} is not a finite number")
+    low, high = _INT_RANGES.get(var.kind, (-math.inf, math.inf))
+    if var.min is not None:
+        low = max(low, float(var.min))
+    if var.max is not None:
+        high = min(high, float(var.max))
+    if not low <= value <= high:
+        raise BadValue(f"{value} is outside the range [{_fmt(low)}, {_fmt(high)}] of {var.name}")
+    return value
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)

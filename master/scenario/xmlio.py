@@ -1,0 +1,115 @@
+"""Reading XML safely and validating it against the SSP 1.0 schemas and ours."""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import fmpy
+from lxml import etree
+
+from .problems import NS_MM, NS_SSD, NS_SSV, PREFIXES, Problems, qualified
+
+SSP_SCHEMAS = Path(fmpy.__file__).parent / "ssp" / "schema"
+OUR_SCHEMA = Path(__file__).resolve().parents[1] / "schemas" / "multirate-settings.xsd"
+
+
+def parse(path: Path, shown: str, problems: Problems) -> etree._ElementTree | None:
+    """Parse `path` without entities or network access; syntax errors become problems."""
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True)
+    try:
+        return etree.parse(str(path), parser)
+    except etree.XMLSyntaxError as err:
+        entry = err.error_log.last_error if err.error_log else None
+        line = entry.line if entry is not None else err.lineno
+        message = entry.message if entry is not None else str(err)
+        problems.add(shown, line, "XML", f"not well-formed XML: {message}")
+    except OSError as err:
+        problems.add(shown, None, "file", f"cannot read: {err}")
+    return None
+
+
+def _combined_schema(imports: dict[str, Path]) -> etree.XMLSchema:
+    """One schema importing several, so that lax wildcards (annotations, inline
+    parameter sets) are validated against every namespace we know."""
+    lines = [f'<xs:import namespace="{ns}" schemaLocation="{p.as_uri()}"/>' for ns, p in imports.items()]
+    wrapper = '<xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema">' + "".join(lines) + "</xs:schema>"
+    return etree.XMLSchema(etree.fromstring(wrapper))
+
+
+@functools.cache
+def ssd_schema() -> etree.XMLSchema:
+    """SSP 1.0 SystemStructureDescription + ParameterValues (inline sets) + our settings."""
+    return _combined_schema(
+        {
+            NS_SSD: SSP_SCHEMAS / "SystemStructureDescription.xsd",
+            NS_SSV: SSP_SCHEMAS / "SystemStructureParameterValues.xsd",
+            NS_MM: OUR_SCHEMA,
+        }
+    )
+
+
+@functools.cache
+def ssv_schema() -> etree.XMLSchema:
+    """SSP 1.0 SystemStructureParameterValues (.ssv files)."""
+    return _combined_schema({NS_SSV: SSP_SCHEMAS / "SystemStructureParameterValues.xsd"})
+
+
+_BRACED = re.compile(r"\{([^}]*)\}(\w+)")
+
+
+def _readable(message: str) -> str:
+    """libxml2 messages name elements '{namespace}Local'; use our short prefixes instead."""
+    return _BRACED.sub(lambda m: f"{PREFIXES.get(m.group(1), m.group(1))}:{m.group(2)}", message)
+
+
+def check_schema(tree: etree._ElementTree, schema: etree.XMLSchema, shown: str, problems: Problems) -> bool:
+    """Validate `tree`; each schema error becomes a problem at its line.  True if valid."""
+    if schema.validate(tree):
+        return True
+    for entry in schema.error_log:
+        message = _readable(entry.message)
+        element = "XML"
+        match = re.match(r"Element '([^']+)'(?:, attribute '([^']+)')?: (.*)", message, re.S)
+        if match:
+            element = match.group(1)
+            message = match.group(3)
+            if match.group(2):
+                message = f"attribute {match.group(2)}: {message}"
+            named = _name_at(tree, entry.path)
+            if named:
+                element = f'{element} "{named}"'
+        problems.add(shown, entry.line, element, f"schema violation: {message.strip()}")
+    return False
+
+
+def _name_at(tree: etree._ElementTree, path: str | None) -> str | None:
+    """The name attribute of the element at a libxml2 error path, if it has one."""
+    if not path:
+        return None
+    try:
+        found = tree.xpath(path, namespaces=_nsmap(tree.getroot()))
+    except etree.XPathError:
+        return None
+    if found and isinstance(found[0], etree._Element):
+        return found[0].get("name")
+    return None
+
+
+def _nsmap(root: etree._Element) -> dict[str, str]:
+    mapping: dict[str, str] = {}
+    for elem in root.iter():
+        if isinstance(elem.tag, str):
+            for prefix, ns in elem.nsmap.items():
+                if prefix:
+                    mapping.setdefault(prefix, ns)
+    return mapping
+
+
+def tag(ns: str, local: str) -> str:
+    """Clark notation '{ns}local' for lxml lookups."""
+    return f"{{{ns}}}{local}"
+
+
+__all__ = ["parse", "check_schema", "ssd_schema", "ssv_schema", "tag", "qualified"]
