@@ -1,0 +1,363 @@
+"""Work-precision bench: sweep co-simulation configurations of a scene, time them, measure
+their error against the Model Exchange reference, and plot wall time against error.
+
+Families swept (each row of the CSV is one configuration):
+- single-rate: every component with the mechanics solver (AB3) at one step h, at several h;
+- dual-rate: mechanics at the macro step H, control at H / r, r = 1 ... 20;
+- order: extrapolation order 0 ... 3 of the coupling polynomials;
+- control-solver: Euler, semi-implicit Euler, semi-implicit midpoint on the control side;
+- mech-solver: AB2, AB3 on the mechanics side;
+- backend: serial and parallel.
+Wall time is the median over repeats of the run's stepping wall time (RunSummary.wall_time);
+the error is the worst scaled max error over the recorded variables (master.evidence.errors).
+A run the runtime stops as unstable, or whose error exceeds the variables' range, is kept in
+the table and the plot as unstable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import statistics
+import sys
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from master.evidence.errors import Trajectory, compare
+from master.evidence.reference import reference
+from master.scenario.model import Scenario
+
+EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
+SOLVER_NAMES = {1: "euler", 2: "ab2", 3: "ab3", 4: "rk4", 5: "si-euler", 6: "si-midpoint"}
+
+
+@dataclass(frozen=True)
+class Config:
+    """One co-simulation configuration: macro step H (s), control step ratio r, solvers, order."""
+
+    family: str
+    macro_step: Fraction
+    ratio: int = 1
+    order: int = 0
+    mech_solver: int = AB3
+    ctrl_solver: int = EULER
+    backend: str = "serial"
+
+    @property
+    def label(self) -> str:
+        h = float(self.macro_step)
+        if self.family == "single-rate":
+            return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}"
+        return (
+            f"{SOLVER_NAMES[self.mech_solver]} H={h:g} + {SOLVER_NAMES[self.ctrl_solver]} "
+            f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {self.backend}"
+        )
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How to sweep one scene: which components are mechanics and control, and the steps (s)."""
+
+    mechanics: tuple[str, ...]
+    control: tuple[str, ...]
+    record_interval: Fraction  # every macro step of the sweep divides it
+    baseline: Config  # the paper's single-rate configuration
+    single_steps: tuple[Fraction, ...]
+    macro_steps: tuple[Fraction, ...]  # dual-rate macro steps
+    base: Config  # the central dual-rate configuration the one-factor sweeps vary
+    ratios: tuple[int, ...] = (1, 2, 5, 10, 20)
+    stop_time: Fraction | None = None  # None: the scene's
+
+
+F = Fraction
+PROFILES: dict[str, Profile] = {
+    "hydraulic-manipulator": Profile(
+        mechanics=("manipulator",),
+        control=("hydraulics",),
+        record_interval=F(1, 100),
+        baseline=Config("single-rate", F(2, 10000)),
+        single_steps=(F(1, 10000), F(2, 10000), F(5, 10000), F(1, 1000)),
+        macro_steps=(F(5, 10000), F(1, 1000), F(2, 1000)),
+        base=Config("dual-rate", F(1, 1000), ratio=5, order=2),
+    ),
+    "dc-motor-arm": Profile(
+        mechanics=("arm",),
+        control=("motors",),
+        record_interval=F(3, 50),
+        baseline=Config("single-rate", F(2, 1000)),
+        single_steps=(F(5, 10000), F(1, 1000), F(2, 1000), F(3, 1000)),
+        macro_steps=(F(5, 1000), F(1, 100), F(2, 100), F(3, 100)),
+        base=Config("dual-rate", F(2, 100), ratio=4, order=2),
+    ),
+    "oscillator": Profile(
+        mechanics=("mass1",),
+        control=("mass2",),
+        record_interval=F(1, 10),
+        baseline=Config("single-rate", F(1, 100)),
+        single_steps=(F(1, 400), F(1, 200), F(1, 100), F(1, 50)),
+        macro_steps=(F(1, 50), F(1, 20), F(1, 10)),
+        base=Config("dual-rate", F(1, 20), ratio=5, order=2),
+    ),
+}
+
+
+def profile_for(sc: Scenario) -> Profile:
+    """The bench profile of a scene, by scenario name or folder name."""
+    for key in (sc.name, Path(sc.path).parent.name, Path(sc.path).stem):
+        if key in PROFILES:
+            return PROFILES[key]
+    names = ", ".join(sorted(PROFILES))
+    raise ValueError(f"{sc.path}: no bench profile for scene {sc.name!r} (known: {names})")
+
+
+def configurations(p: Profile, quick: bool = False) -> list[Config]:
+    """The sweep: the full one for the docs, or a handful of runs (`quick`) for tests."""
+    b = p.base
+    if quick:
+        return [
+            p.baseline,
+            dataclasses.replace(p.baseline, macro_step=p.single_steps[-1]),
+            b,
+            dataclasses.replace(b, ratio=p.ratios[-1], order=3),
+            dataclasses.replace(b, family="control-solver", ctrl_solver=SI_MIDPOINT, ratio=1),
+        ]
+    out = [Config("single-rate", h) for h in p.single_steps]
+    out += [dataclasses.replace(b, macro_step=h, ratio=r) for h in p.macro_steps for r in p.ratios]
+    out += [dataclasses.replace(b, family="order", order=k) for k in range(4) if k != b.order]
+    out += [
+        dataclasses.replace(b, family="control-solver", ctrl_solver=s, ratio=r)
+        for s in (EULER, SI_EULER, SI_MIDPOINT)
+        for r in (1, b.ratio)
+        if (s, r) != (b.ctrl_solver, b.ratio)
+    ]
+    out += [dataclasses.replace(b, family="control-solver", ctrl_solver=s, ratio=1, macro_step=h)
+            for s in (SI_EULER, SI_MIDPOINT) for h in p.macro_steps]  # fmt: skip
+    out += [dataclasses.replace(b, family="mech-solver", mech_solver=AB2)]
+    out += [dataclasses.replace(c, family="backend", backend="parallel") for c in (p.baseline, b)]
+    seen, unique = set(), []
+    for c in out:
+        key = dataclasses.replace(c, family="")
+        if key not in seen:
+            seen.add(key)
+            unique.append(c)
+    return unique
+
+
+def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
+    """The scene with the configuration's steps, ratios, orders and solvers."""
+    comps = []
+    for comp in sc.components:
+        ctrl = comp.name in p.control and c.family != "single-rate"
+        solver = c.ctrl_solver if ctrl else c.mech_solver
+        params = {**comp.parameters, "solver": solver, "internal_step": 0.0}
+        comps.append(
+            dataclasses.replace(
+                comp,
+                parameters=params,
+                step_ratio=c.ratio if ctrl else 1,
+                extrapolation_order=c.order,
+                interpolate_inputs=False,
+            )
+        )
+    conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
+    return dataclasses.replace(
+        sc,
+        components=tuple(comps),
+        connections=conns,
+        macro_step=c.macro_step,
+        record_interval=p.record_interval,
+        stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
+    )
+
+
+def base_scene(sc: Scenario, p: Profile) -> Scenario:
+    """The scene as the reference sees it: the profile's record grid and stop time."""
+    return dataclasses.replace(
+        sc,
+        macro_step=p.record_interval,
+        record_interval=p.record_interval,
+        stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
+    )
+
+
+def as_trajectory(data: np.ndarray) -> Trajectory:
+    """A run's structured result array as a Trajectory."""
+    names = [n for n in data.dtype.names if n != "time"]
+    return Trajectory(
+        np.asarray(data["time"], dtype=float), {n: np.asarray(data[n], dtype=float) for n in names}
+    )
+
+
+@dataclass
+class Row:
+    """One measured configuration."""
+
+    config: Config
+    wall_time: float  # median stepping wall time (s)
+    wall_times: list[float]
+    error: float  # worst scaled max error
+    end_error: float
+    worst_variable: str
+    stable: bool
+    status: str
+
+
+def measure(sc: Scenario, p: Profile, c: Config, ref: Trajectory, repeats: int) -> Row:
+    """Run one configuration `repeats` times; its error from the first run."""
+    from master.api import run
+    from master.backends.component import SimulationError
+
+    scene = apply(sc, p, c)
+    times: list[float] = []
+    err = end = float("inf")
+    worst = ""
+    status = "finished"
+    for i in range(repeats):
+        try:
+            res = run(scene, backend=c.backend)
+        except SimulationError as e:
+            times.append(e.result.summary.wall_time)
+            status = str(e).split(" (hint")[0]
+            break
+        times.append(res.summary.wall_time)
+        if i == 0:
+            rep = compare(as_trajectory(res.data), ref)
+            err, end, worst = rep.worst_max, rep.worst_end, rep.worst_max_variable
+    stable = status == "finished" and err <= 1.0
+    if status == "finished" and not stable:
+        status = f"diverged: error {err:.3g} of the range ({worst})"
+    return Row(c, statistics.median(times), times, err, end, worst, stable, status)
+
+
+def pareto(rows: list[Row]) -> list[Row]:
+    """Stable rows no other stable row beats in both wall time and error, fastest first."""
+    front: list[Row] = []
+    for r in sorted((r for r in rows if r.stable), key=lambda r: (r.wall_time, r.error)):
+        if not front or r.error < front[-1].error:
+            front.append(r)
+    return front
+
+
+def speedup(rows: list[Row], baseline: Config) -> tuple[Row, Row] | None:
+    """(baseline row, fastest stable row with error <= the baseline's), None if the baseline failed."""
+    base = next((r for r in rows if r.config == baseline), None)
+    if base is None or not base.stable:
+        return None
+    ok = [r for r in rows if r.stable and r.error <= base.error]
+    return base, min(ok, key=lambda r: r.wall_time)
+
+
+def write_csv(rows: list[Row], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    front = {id(r) for r in pareto(rows)}
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(
+            ["family", "label", "backend", "macro_step_s", "control_step_s", "ratio", "order", "mech_solver",
+             "control_solver", "wall_time_s", "error_max", "error_end", "worst_variable", "stable", "pareto",
+             "status"]
+        )  # fmt: skip
+        for r in rows:
+            c = r.config
+            ctrl_step = float(c.macro_step) / c.ratio
+            ctrl = SOLVER_NAMES[c.ctrl_solver] if c.family != "single-rate" else ""
+            w.writerow(
+                [c.family, c.label, c.backend, f"{float(c.macro_step):g}", f"{ctrl_step:g}", c.ratio, c.order,
+                 SOLVER_NAMES[c.mech_solver], ctrl,
+                 f"{r.wall_time:.4g}", f"{r.error:.3e}", f"{r.end_error:.3e}", r.worst_variable, r.stable,
+                 id(r) in front, r.status]
+            )  # fmt: skip
+
+
+def plot(rows: list[Row], path: Path, title: str) -> None:
+    """Log-log work-precision plot: wall time against error; Pareto front; unstable runs on top."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    markers = {"single-rate": "s", "dual-rate": "o", "order": "^", "control-solver": "D", "mech-solver": "v",
+               "backend": "P"}  # fmt: skip
+    stable = [r for r in rows if r.stable]
+    top = max([r.error for r in stable], default=1.0) * 3.0
+    for fam, mk in markers.items():
+        pts = [r for r in stable if r.config.family == fam]
+        if pts:
+            ax.loglog([r.wall_time for r in pts], [r.error for r in pts], mk, label=fam, alpha=0.8)
+    bad = [r for r in rows if not r.stable]
+    if bad:
+        ax.loglog([r.wall_time for r in bad], [top] * len(bad), "x", color="red", ms=9, label="unstable")
+    front = pareto(rows)
+    if front:
+        ax.loglog([r.wall_time for r in front], [r.error for r in front], "-", color="black", lw=1,
+                  label="Pareto front")  # fmt: skip
+    ax.set_xlabel("wall time [s]")
+    ax.set_ylabel("worst scaled max error")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Row]:
+    """Run the sweep of a scene; write <out_dir>/<scene>[-quick].csv and .png; return the rows."""
+    from master.api import load_scenario
+
+    sc = load_scenario(scenario)
+    p = profile_for(sc)
+    base = base_scene(sc, p)
+    ref = reference(
+        base, overrides={"record_interval": str(p.record_interval), "stop_time": str(base.stop_time)}
+    )
+    rows = [measure(sc, p, c, ref, repeats) for c in configurations(p, quick)]
+    stem = Path(sc.path).parent.name + ("-quick" if quick else "")
+    write_csv(rows, out_dir / f"{stem}.csv")
+    plot(rows, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)")
+    return rows
+
+
+def report(rows: list[Row], baseline: Config) -> str:
+    """Text summary: every row, the Pareto front and the speed-up over the baseline."""
+    lines = [f"{'wall [s]':>9} {'error':>10}  stable  configuration"]
+    for r in rows:
+        lines.append(
+            f"{r.wall_time:9.4f} {r.error:10.3e}  {'yes' if r.stable else 'NO ':6}  {r.config.label}"
+        )
+    su = speedup(rows, baseline)
+    if su is None:
+        lines.append("baseline did not run stably: no speed-up to report")
+    else:
+        b, best = su
+        lines.append(
+            f"speed-up {b.wall_time / best.wall_time:.2f}x: {best.config.label} ({best.wall_time:.4f} s, "
+            f"error {best.error:.3e}) vs baseline {b.config.label} ({b.wall_time:.4f} s, error {b.error:.3e})"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`master bench SCENARIO [--quick] [--out DIR] [--repeats N]`."""
+    ap = argparse.ArgumentParser(prog="master bench", description=__doc__.splitlines()[0])
+    ap.add_argument("scenario", help="scenario file (.ssd / .ssp)")
+    ap.add_argument("--quick", action="store_true", help="a handful of configurations (for tests)")
+    ap.add_argument("--out", default="docs/evidence", help="folder for the CSV table and PNG plot")
+    ap.add_argument("--repeats", type=int, default=3, help="runs per configuration; wall time is the median")
+    a = ap.parse_args(argv)
+    from master.api import load_scenario
+
+    p = profile_for(load_scenario(a.scenario))
+    rows = bench(a.scenario, Path(a.out), quick=a.quick, repeats=a.repeats)
+    print(report(rows, p.baseline))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
