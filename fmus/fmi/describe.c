@@ -1,0 +1,92 @@
+/* describe.c: print a model's ModelDef as JSON on stdout.
+ *
+ * Linked with the model's sources (and the layer, which the model may call),
+ * never into the FMU.  master/fmubuild.py turns the JSON into
+ * modelDescription.xml, so the variable table in C is the only source of truth.
+ */
+#include <math.h>
+#include <stdio.h>
+
+#include "model.h"
+
+static void json_string(const char *s) {
+    if (!s) {
+        fputs("null", stdout);
+        return;
+    }
+    putchar('"');
+    for (; *s; s++) {
+        unsigned char ch = (unsigned char)*s;
+        if (ch == '"' || ch == '\\')
+            printf("\\%c", ch);
+        else if (ch < 0x20)
+            printf("\\u%04x", ch);
+        else
+            putchar(ch);
+    }
+    putchar('"');
+}
+
+/* Non-finite numbers are not JSON: write them as the strings "inf", "-inf", "nan". */
+static void json_number(double x) {
+    if (isfinite(x))
+        printf("%.17g", x);
+    else
+        fputs(x > 0 ? "\"inf\"" : (x < 0 ? "\"-inf\"" : "\"nan\""), stdout);
+}
+
+static void json_ints(const int *a, int n) {
+    putchar('[');
+    for (int i = 0; i < n; i++) printf("%s%d", i ? ", " : "", a[i]);
+    putchar(']');
+}
+
+int main(void) {
+    static const char *const types[] = {"Real", "Integer", "Boolean", "String", "Solver"};
+    static const char *const causalities[] = {"parameter", "calculatedParameter", "input",
+                                              "output",    "local",               "independent"};
+    static const char *const variabilities[] = {"constant", "fixed", "tunable", "discrete", "continuous"};
+    static const char *const initials[] = {NULL, "exact", "approx", "calculated"};
+    const ModelDef *m = &MODEL;
+
+    printf("{\n\"identifier\": ");
+    json_string(m->identifier);
+    printf(",\n\"guid\": ");
+    json_string(m->guid);
+    printf(",\n\"description\": ");
+    json_string(m->description);
+    printf(",\n\"n_reals\": %d, \"n_integers\": %d, \"n_booleans\": %d, \"n_strings\": %d,\n", m->n_reals,
+           m->n_integers, m->n_booleans, m->n_strings);
+    printf("\"n_states\": %d,\n\"state_slots\": ", m->n_states);
+    json_ints(m->state_slots, m->n_states);
+    printf(",\n\"derivative_slots\": ");
+    json_ints(m->derivative_slots, m->n_states);
+    printf(",\n\"has_initialize\": %s, \"has_jacobian\": %s, \"has_outputs\": %s,\n",
+           m->initialize ? "true" : "false", m->jacobian ? "true" : "false", m->outputs ? "true" : "false");
+    printf("\"variables\": [\n");
+    for (int i = 0; i < m->n_variables; i++) {
+        const Variable *v = &m->variables[i];
+        printf("  {\"name\": ");
+        json_string(v->name);
+        printf(", \"type\": \"%s\", \"causality\": \"%s\", \"variability\": \"%s\", \"initial\": ",
+               types[v->type], causalities[v->causality], variabilities[v->variability]);
+        json_string(initials[v->initial]);
+        printf(", \"slot\": %d, \"start\": ", v->slot);
+        json_number(v->start);
+        printf(", \"start_string\": ");
+        json_string(v->start_string);
+        printf(", \"min\": ");
+        json_number(v->min);
+        printf(", \"max\": ");
+        json_number(v->max);
+        printf(", \"unit\": ");
+        json_string(v->unit);
+        printf(", \"description\": ");
+        json_string(v->description);
+        printf(", \"derivative_of\": %d, \"dependencies\": ", v->derivative_of);
+        json_string(v->dependencies);
+        printf("}%s\n", i + 1 < m->n_variables ? "," : "");
+    }
+    printf("]\n}\n");
+    return 0;
+}

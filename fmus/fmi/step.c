@@ -1,0 +1,112 @@
+/* step.c: fmi2DoStep with fixed internal steps and interpolated inputs.
+ *
+ * Input rule (canInterpolateInputs): fmi2SetRealInputDerivatives(vr, k, d_k)
+ * gives the k-th time derivative (k = 1..3) of a Real input at the current
+ * communication point t_c.  Inside the next fmi2DoStep, before every model
+ * evaluation at a substep or stage time s, each Real input slot is set to
+ *     u(s) = u0 + sum_k d_k (s - t_c)^k / k!
+ * where u0 is the value the master set.  After the step the input slots get
+ * back exactly u0 and all derivatives are cleared: the master sets new ones
+ * for every step (no derivatives given = inputs held constant).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "instance.h"
+
+/* Evaluate the input polynomials at time t into the input slots. */
+static void apply_input_polynomials(Instance *inst, double t) {
+    double dt = t - inst->core->comm_point;
+    for (int i = 0; i < inst->n_real_inputs; i++) {
+        const double *d = inst->input_derivs + (size_t)i * MAX_INPUT_ORDER;
+        /* Horner form of u0 + d1 dt + d2 dt^2/2 + d3 dt^3/6 */
+        double u = inst->input_values[i] + dt * (d[0] + dt * (d[1] / 2.0 + dt * d[2] / 6.0));
+        inst->reals[inst->model->variables[inst->real_input_vr[i]].slot] = u;
+    }
+}
+
+int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
+    Instance *inst = ctx;
+    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inst->core->n_rhs++;
+    return inst->model->derivatives(inst, t, x, dx) != MODEL_OK;
+}
+
+int jac_with_inputs(void *ctx, double t, const double *x, double *J) {
+    Instance *inst = ctx;
+    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    return inst->model->jacobian(inst, t, x, J) != MODEL_OK;
+}
+
+/* Number of internal steps in a communication step H, or 0 (logged) if H is not a multiple. */
+static long long internal_steps(Instance *inst, double H) {
+    double h = inst->reals[R_INTERNAL_STEP];
+    double ratio, n;
+    if (!(h > 0.0)) return 1;
+    ratio = H / h;
+    n = nearbyint(ratio);
+    if (n < 1.0 || fabs(ratio - n) > 1e-9 * ratio) {
+        layer_log(inst, LOG_ERROR,
+                  "fmi2DoStep: communication step %.17g s is not an integer multiple of internal_step %.17g s "
+                  "(ratio %.17g)",
+                  H, h, ratio);
+        return 0;
+    }
+    return (long long)n;
+}
+
+fmi2Status do_step(Instance *inst, double t, double H) {
+    const ModelDef *m = inst->model;
+    Core *c = inst->core;
+    SolverKind kind = (SolverKind)inst->integers[I_SOLVER];
+    int n = m->n_states, rc = 0;
+    long long steps;
+    double h;
+
+    if (!isfinite(t) || !isfinite(H) || !(H > 0.0)) {
+        layer_log(inst, LOG_ERROR, "fmi2DoStep: invalid step: t = %g s, H = %g s (need finite t and H > 0)", t, H);
+        return fmi2Error;
+    }
+    if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t))) {
+        layer_log(inst, LOG_ERROR, "fmi2DoStep: communication point %.17g s does not match the FMU time %.17g s", t,
+                  c->time);
+        return fmi2Error;
+    }
+    steps = internal_steps(inst, H);
+    if (steps == 0) return fmi2Error;
+    h = H / (double)steps;
+
+    for (int i = 0; i < inst->n_real_inputs; i++)
+        inst->input_values[i] = inst->reals[m->variables[inst->real_input_vr[i]].slot];
+    c->comm_point = t;
+    gather_states(inst, inst->x);
+    for (long long j = 0; j < steps && rc == 0; j++) {
+        /* Substep times from the integer j: no accumulated drift. */
+        double s = t + (double)j * h;
+        rc = solver_step(kind, inst->memory, inst->work, n, rhs_with_inputs, m->jacobian ? jac_with_inputs : NULL,
+                         inst, s, h, inst->x);
+        c->n_substeps++;
+    }
+
+    /* Restore the inputs the master set and forget this step's derivatives. */
+    for (int i = 0; i < inst->n_real_inputs; i++)
+        inst->reals[m->variables[inst->real_input_vr[i]].slot] = inst->input_values[i];
+    memset(inst->input_derivs, 0, sizeof(double) * (size_t)inst->n_real_inputs * MAX_INPUT_ORDER);
+    c->have_input_derivatives = 0;
+
+    if (rc != 0) {
+        layer_log(inst, LOG_ERROR, "fmi2DoStep: %s in the step from t = %.17g s (h = %g s)",
+                  rc == 2 ? "singular linear system" : "model equations failed", t, h);
+        c->state = ST_ERROR;
+        return fmi2Error;
+    }
+    scatter_states(inst, inst->x);
+    c->time = t + H;
+    c->n_steps++;
+    mark_dirty(inst);
+    if (refresh(inst, 0, "fmi2DoStep") || check_finite(inst, "fmi2DoStep")) {
+        c->state = ST_ERROR;
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
