@@ -7,7 +7,6 @@ result.data["mass1.x"], result.summary.real_time_factor
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import logging
 from fractions import Fraction
 from pathlib import Path
@@ -28,19 +27,14 @@ class UsageError(Exception):
     """Bad input from the user (option, value or file), with a message saying what and where."""
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario file (.ssd / .ssp) through `master.scenario.load`."""
+def load_scenario(path: str | Path, overrides: dict[str, str] | None = None) -> Scenario:
+    """Read a scenario file (.ssd / .ssp); overrides: "component.variable" -> value text."""
+    from master.scenario import load
+
     path = Path(path)
     if not path.exists():
         raise UsageError(f"{path}: no such scenario file")
-    try:
-        from master.scenario import load
-    except ImportError as e:
-        raise UsageError(f"{path}: scenario files cannot be read yet (master.scenario.load missing)") from e
-    params = list(inspect.signature(load).parameters.values())
-    if len(params) > 1 and params[1].default is inspect.Parameter.empty:
-        return load(path, {})
-    return load(path)
+    return load(path, overrides or None)
 
 
 def parse_value(text: str) -> Value:
@@ -85,7 +79,11 @@ def apply_overrides(
             pairs.append((comp, var))
         sc = dataclasses.replace(sc, record=tuple(pairs))
     if set_values:
-        items = set_values.items() if isinstance(set_values, dict) else [_split_set(s) for s in set_values]
+        items = (
+            set_values.items()
+            if isinstance(set_values, dict)
+            else [(k, parse_value(v)) for k, v in map(_split_set, set_values)]
+        )
         comps = {c.name: c for c in sc.components}
         for key, value in items:
             comp, _, var = key.partition(".")
@@ -99,11 +97,11 @@ def apply_overrides(
     return sc
 
 
-def _split_set(text: str) -> tuple[str, Value]:
+def _split_set(text: str) -> tuple[str, str]:
     key, eq, value = text.partition("=")
     if not eq:
         raise UsageError(f"--set {text}: expected component.variable=value")
-    return key.strip(), parse_value(value.strip())
+    return key.strip(), value.strip()
 
 
 def plan(sc: Scenario) -> Plan:
@@ -153,8 +151,13 @@ def run(
     `real_time` paces the run (1.0: wall clock speed). On failure a SimulationError is raised
     after the rows computed so far are written; it carries `.result` (a RunResult).
     """
-    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    sc = apply_overrides(sc, stop_time, record, set_values, output_interval)
+    if isinstance(scenario, Scenario):
+        sc = apply_overrides(scenario, stop_time, record, set_values, output_interval)
+    else:  # the reader converts and checks --set values against the FMUs
+        texts = dict(_split_set(s) for s in set_values) if isinstance(set_values, list) else None
+        if isinstance(set_values, dict):
+            texts = {k: str(v) for k, v in set_values.items()}
+        sc = apply_overrides(load_scenario(scenario, texts), stop_time, record, None, output_interval)
     p = plan(sc)
     for note in p.notes:
         log.info(note)
