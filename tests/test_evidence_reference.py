@@ -1,0 +1,48 @@
+"""Model Exchange reference solutions against exact solutions, and their cache."""
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from master.evidence.reference import integrate, reference
+from master.fmubuild import fmu_path
+from master.scenario.model import Component, Scenario
+
+
+def _dahlquist(tmp_path, lam: float) -> Scenario:
+    ssd = tmp_path / "d.ssd"
+    ssd.write_text("<stand-in scenario file: its bytes are part of the cache key/>")
+    comp = Component("d", fmu_path("dahlquist"), {"lambda": lam, "y0": 3.0})
+    return Scenario(ssd, "d", (comp,), (), Fraction(0), Fraction(2), Fraction(1, 10))
+
+
+def test_dahlquist_reference_matches_exponential(tmp_path):
+    tr = integrate(_dahlquist(tmp_path, -2.0))
+    exact = 3.0 * np.exp(-2.0 * tr.time)
+    assert len(tr.time) == 21
+    assert np.max(np.abs(tr.values["d.y"] - exact)) < 1e-9
+
+
+def test_stiff_dahlquist_reference_is_cheap_and_exact(tmp_path):
+    tr = integrate(_dahlquist(tmp_path, -1e4))  # Radau: no step limit from stiffness
+    assert np.max(np.abs(tr.values["d.y"][1:])) < 1e-12
+
+
+def test_cache_hit_and_key(tmp_path):
+    sc = _dahlquist(tmp_path, -1.0)
+    cache = tmp_path / "cache"
+    a = reference(sc, {"x": 1}, cache_dir=cache)
+    files = list(cache.glob("*.npz"))
+    assert len(files) == 1
+    b = reference(sc, {"x": 1}, cache_dir=cache)  # from the file
+    assert np.array_equal(a.values["d.y"], b.values["d.y"])
+    reference(sc, {"x": 2}, cache_dir=cache)  # other overrides: other entry
+    assert len(list(cache.glob("*.npz"))) == 2
+
+
+def test_unknown_parameter_is_named(tmp_path):
+    sc = _dahlquist(tmp_path, -1.0)
+    comp = Component("d", fmu_path("dahlquist"), {"lambada": 1.0})
+    with pytest.raises(ValueError, match="component 'd' has no variable 'lambada'"):
+        integrate(Scenario(sc.path, "d", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10)))
