@@ -81,6 +81,9 @@ def _parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("build-fmus", help="build the project's FMUs", add_help=False)
     b.add_argument("args", nargs=argparse.REMAINDER)
+
+    be = sub.add_parser("bench", help="work-precision bench of a scenario", add_help=False)
+    be.add_argument("args", nargs=argparse.REMAINDER)
     return p
 
 
@@ -91,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
         from master.fmubuild import main as build_main
 
         return int(build_main(argv[1:]) or 0)
+    if argv[:1] == ["bench"]:
+        from master.evidence.bench import main as bench_main
+
+        return int(bench_main(argv[1:]) or 0)
     args = _parser().parse_args(argv)
     quiet = getattr(args, "quiet", False)
     logging.basicConfig(
