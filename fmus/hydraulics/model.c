@@ -82,8 +82,8 @@ enum {
     PARAM("area" n, (base) + A_AREA, area, 0, "m2", "piston area (both sides)"),                           \
     PARAM("volume_left" n, (base) + A_VOLUME_LEFT, v0, 0, "m3", "left (cap side) volume at stroke 0"),     \
     PARAM("volume_right" n, (base) + A_VOLUME_RIGHT, v0, 0, "m3", "right volume at stroke 0"),             \
-    PARAM("Kv" n, (base) + A_KV, kv, 0, "m3/(s.m.Pa0.5)",                                                  \
-          "valve flow coefficient: Q = Kv x sqrt(dp) (SI; paper value times sqrt(1e-3))"),               \
+    PARAM("Kv" n, (base) + A_KV, kv, 0, NULL,                                                              \
+          "valve flow coefficient in m3/(s m Pa^0.5): Q = Kv x sqrt(dp) (paper value times sqrt(1e-3))"),  \
     {"spool" n, T_REAL, C_INPUT, V_CONTINUOUS, I_DEFAULT, SLOT((base) + A_SPOOL), 0.0, NULL, -INFINITY,    \
      INFINITY, "m", "spool displacement (positive: supply to left chamber)", NO_STATE, NULL},             \
     {"stroke" n, T_REAL, C_INPUT, V_CONTINUOUS, I_DEFAULT, SLOT((base) + A_STROKE), 0.0, NULL, -INFINITY,  \
@@ -115,7 +115,7 @@ static const Variable VARIABLES[N_VARIABLES] = {
     PARAM("p_tank", VR_P_TANK, 0.0, -INFINITY, "Pa", "tank (return) pressure"),
     PARAM("bulk_modulus", VR_BETA, 1.03e9, 0, "Pa", "effective bulk modulus of the oil"),
     PARAM("dp_lin", VR_DP_LIN, 1e5, 0, "Pa", "pressure drop below which the orifice law turns linear"),
-    PARAM("leakage", VR_LEAKAGE, 0.0, 0, "m3/(s.Pa)", "leakage coefficient across each piston"),
+    PARAM("leakage", VR_LEAKAGE, 0.0, 0, "m3/s.Pa", "leakage coefficient across each piston"),
     /* value references: actuator 1 at 7..20, 2 at 21..34, 3 at 35..48 */
     ACTUATOR("1", B1, 1.94e-2, 1.23e-2, 1.49e-3 * KV_SCALE, 8.14e6, 5.66e6, "11 12 13 14 15", "14 15"),
     ACTUATOR("2", B2, 1.55e-2, 3.28e-3, 7.45e-4 * KV_SCALE, 6.9e6, 6.9e6, "25 26 27 28 29", "28 29"),
