@@ -30,6 +30,9 @@ class SimulationError(Exception):
         self.time = time
 
 
+# An output beyond this many times its start magnitude (at least 1) has diverged.
+GROWTH_LIMIT = 1e6
+
 UNSTABLE_HINT = (
     "hint: the coupled system is unstable at these settings; try a smaller macro step, "
     "a semi-implicit solver in the stiff component, or a lower extrapolation order"
@@ -86,6 +89,7 @@ class ComponentRunner:
         max_order = max([lk.order for lk in links], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
+        self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
         self.steps = 0
         # (column in the result row, column in the history) / (column, variable name)
         self.record_real: list[tuple[int, int]] = []
@@ -152,6 +156,8 @@ class ComponentRunner:
         k = self.pc.ratio
         h = self.h
         fmu = self.fmu
+        if self.bound is None:
+            self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(self.history.buf[0]))
         for j in range(n * k, n * k + k):
             t = self.clock.time(j)
             self._fill_inputs(n, j, histories)
@@ -174,6 +180,16 @@ class ComponentRunner:
                 t1 = self.clock.time(j + 1)
                 raise SimulationError(
                     f"unstable: {self.name}.{bad} at t={t1} ({UNSTABLE_HINT})", self.name, t1, bad
+                )
+            if (np.abs(vals) > self.bound).any():
+                i = int(np.flatnonzero(np.abs(vals) > self.bound)[0])
+                bad, t1 = self.out.names[i], self.clock.time(j + 1)
+                raise SimulationError(
+                    f"unstable: {self.name}.{bad} at t={t1}: {vals[i]:.3g} is beyond {GROWTH_LIMIT:g} times "
+                    f"its start magnitude ({UNSTABLE_HINT})",
+                    self.name,
+                    t1,
+                    bad,
                 )
             self.history.push(j + 1, vals)
 
