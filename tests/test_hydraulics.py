@@ -13,6 +13,7 @@ import shutil
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from scipy.integrate import solve_ivp
 
@@ -181,8 +182,9 @@ def test_oil_mass_balance_with_moving_pistons(fmu):
     """Integrated flows equal the change of oil in each chamber while the pistons move.
 
     With rho = rho0 exp(p / beta) the oil mass in a chamber is rho0 V exp(p / beta) and
-    d/dt [V exp(p/beta)] = exp(p/beta) Q (while no pressure sits at a clamp).  The FMU's Model Exchange equations, integrated
-    tightly with the strokes s(t) = v t fed in exactly, must satisfy this to the tolerance.
+    d/dt [V exp(p/beta)] = exp(p/beta) Q (while no pressure sits at a clamp).  The FMU's Model
+    Exchange equations, integrated tightly with the strokes s(t) = v t fed in exactly, must
+    satisfy this to the tolerance.
     """
     rates = (4e-3, -1.5e-3, 2e-3)  # m/s, slow enough that no chamber reaches supply or tank
     params = {"spool1": 0.8e-3, "spool2": -0.5e-3, "spool3": 0.3e-3, "leakage": 5e-12}
@@ -274,12 +276,13 @@ def test_observed_order_on_the_exact_leakage_decay(fmu, solver, order):
     np.testing.assert_allclose(rates, order, atol=0.1)
 
 
-def test_stroke_beyond_the_cylinder_is_an_error(fmu):
-    """A stroke that empties a chamber is refused with an error (not a negative volume)."""
+def test_stroke_beyond_the_cylinder_is_an_error(fmu, capsys):
+    """A stroke that empties a chamber is refused with an error naming the stroke."""
     inst = Instance(fmu, "me", {})
     try:
         inst.set({"stroke2": -0.25})  # V0/A = 0.21 m
-        with pytest.raises(Exception):
+        with pytest.raises(FMICallException):
             inst.rhs(pressures(inst))
+        assert "stroke2 = -0.25 m leaves a chamber volume <= 0" in capsys.readouterr().out
     finally:
         inst.close()
