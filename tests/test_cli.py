@@ -1,0 +1,131 @@
+"""Command-line smoke tests through real subprocesses (`python -m master ...`)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy.util import read_csv
+
+from master.fmubuild import fmu_path
+
+SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="decay"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="decay">
+    <ssd:Elements>
+      <ssd:Component name="d" source="project:dahlquist">
+        <ssd:Connectors>
+          <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>
+    </ssd:Elements>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="{stop}">
+    <ssd:Annotations>
+      <ssc:Annotation type="org.multirate-master.settings">
+        <mm:Settings macroStep="{step}"/>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>
+"""
+
+
+def master(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "master", *args], capture_output=True, text=True, cwd=cwd, timeout=120
+    )
+
+
+@pytest.fixture
+def decay(tmp_path) -> Path:
+    fmu_path("dahlquist")  # build once, before the subprocesses need it
+    p = tmp_path / "decay.ssd"
+    p.write_text(SSD.format(stop="1", step="0.01"))
+    return p
+
+
+@pytest.mark.parametrize("cmd", [[], ["run"], ["validate"], ["info"], ["plot"]])
+def test_help(cmd):
+    r = master(*cmd, "--help")
+    assert r.returncode == 0 and "usage: master" in r.stdout
+
+
+def test_run_writes_csv_and_plot(decay, tmp_path):
+    out, png = tmp_path / "out.csv", tmp_path / "out.png"
+    r = master(
+        "run", str(decay), "-o", str(out), "--set", "d.lambda=-2", "--stop-time", "0.5", "--plot", str(png)
+    )
+    assert r.returncode == 0, r.stderr
+    assert "real-time factor" in r.stdout and "overhead" in r.stdout
+    data = read_csv(str(out))
+    assert data.dtype.names == ("time", "d.y")
+    assert data["time"][-1] == 0.5 and len(data) == 51
+    assert data["d.y"][-1] == pytest.approx(np.exp(-1.0), rel=1e-6)  # RK4 at h = 0.01
+    assert png.stat().st_size > 1000
+    r = master("plot", str(out), "-o", str(tmp_path / "again.png"))
+    assert r.returncode == 0 and (tmp_path / "again.png").exists()
+
+
+def test_validate_info(decay):
+    assert master("validate", str(decay)).returncode == 0
+    r = master("info", str(decay))
+    assert r.returncode == 0 and "d: k = 1, h = 1/100 s" in r.stdout
+    r = master("info", str(fmu_path("dahlquist")))
+    assert r.returncode == 0 and "canInterpolateInputs=True" in r.stdout and "lambda" in r.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "missing.ssd"], "missing.ssd: no such scenario file"),
+        (["run", "{decay}", "--parallel"], "parallel"),
+        (["run", "{decay}", "--set", "d.nope=1"], "nope"),
+        (["run", "{decay}", "--stop-time", "0.015"], "not a whole number of macro steps"),
+        (["run", "{decay}", "--record", "x.y"], "--record x.y"),
+        (["plot", "missing.csv"], "missing.csv"),
+    ],
+)
+def test_user_errors_exit_non_zero_without_traceback(decay, args, message):
+    r = master(*[a.format(decay=decay) for a in args])
+    assert r.returncode != 0
+    assert message in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_invalid_scenario_is_reported(tmp_path):
+    bad = tmp_path / "bad.ssd"
+    bad.write_text(SSD.format(stop="1", step="0.01").replace("project:dahlquist", "nothere.fmu"))
+    r = master("validate", str(bad))
+    assert r.returncode == 1 and "bad.ssd" in r.stdout
+    r = master("run", str(bad))
+    assert r.returncode == 1 and "bad.ssd" in r.stderr and "Traceback" not in r.stderr
+
+
+PEAK = "import resource, sys; from master.cli import main; rc = main(sys.argv[1:]); " + (
+    "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(rc)"
+)
+
+
+def peak_kib(ssd: Path, out: Path) -> int:
+    r = subprocess.run(
+        [sys.executable, "-c", PEAK, "run", str(ssd), "-o", str(out), "-q"], capture_output=True, text=True
+    )
+    assert r.returncode == 0, r.stderr
+    return int(r.stdout.split()[-1])
+
+
+def test_results_stream_to_disk_memory_stays_flat(tmp_path):
+    """10^5 recorded steps peak within 50 MB of 10^3 (benchmarks/overhead.py --memory checks 10^6)."""
+    fmu_path("dahlquist")
+    small, big = tmp_path / "small.ssd", tmp_path / "big.ssd"
+    small.write_text(SSD.format(stop="1", step="0.001"))
+    big.write_text(SSD.format(stop="1", step="0.00001"))
+    p_small = peak_kib(small, tmp_path / "small.csv")
+    p_big = peak_kib(big, tmp_path / "big.csv")
+    assert len((tmp_path / "big.csv").read_text().splitlines()) == 100_002
+    assert p_big - p_small < 50 * 1024, (p_small, p_big)
