@@ -7,6 +7,8 @@ State z = (x1, v1, x2, v2) in (m, m/s, m, m/s); the exact solution is z(t) = exp
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 from scipy.linalg import expm
@@ -110,3 +112,43 @@ def split_scheme(
     )
     conns = (("mass1", "x", "mass2", "x_in"), ("mass1", "v", "mass2", "v_in"), ("mass2", "F", "mass1", "F"))
     return LinearScheme((m1, m2), conns, order=order, inputs=inputs)
+
+
+def scene(
+    p: TwoMass = SET_A,
+    split: str = "displacement",
+    macro_step: Fraction = Fraction(1, 100),
+    stop_time: Fraction = Fraction(10),
+    order: int = 0,
+    solvers: tuple[int, int] = (4, 4),
+    step_ratios: tuple[int, int] = (1, 1),
+    z0: np.ndarray = SET_A_Z0,
+    path: Path | None = None,
+):
+    """The benchmark as a Scenario of two msd FMUs (the split as in `split_scheme`).
+
+    Records x and v of both masses.  path: the scenario's file name (default: the msd model source).
+    """
+    from master.fmubuild import fmu_path
+    from master.scenario.model import Component, Connection, Scenario
+
+    fmu = fmu_path("msd")
+    coupled = split == "displacement"
+    comps = []
+    for i, (name, m, c, d) in enumerate((("mass1", p.m1, p.c1, p.d1), ("mass2", p.m2, p.c2, p.d2))):
+        has_coupling = coupled or i == 1
+        params = {"m": m, "c": c, "d": d, "x0": float(z0[2 * i]), "v0": float(z0[2 * i + 1]),
+                  "cc": p.cc if has_coupling else 0.0, "dc": p.dc if has_coupling else 0.0,
+                  "solver": solvers[i], "internal_step": 0.0}  # fmt: skip
+        comps.append(Component(name, fmu, params, step_ratio=step_ratios[i], extrapolation_order=order))
+    conns = [Connection("mass1", "x", "mass2", "x_in"), Connection("mass1", "v", "mass2", "v_in")]
+    if coupled:
+        conns += [Connection("mass2", "x", "mass1", "x_in"), Connection("mass2", "v", "mass1", "v_in")]
+    elif split == "force":
+        conns += [Connection("mass2", "F_c", "mass1", "F")]
+    else:
+        raise ValueError(f"unknown split {split!r}: 'displacement' or 'force'")
+    record = tuple((c, v) for c in ("mass1", "mass2") for v in ("x", "v"))
+    src = path or Path(__file__).resolve().parents[2] / "fmus" / "msd" / "model.c"
+    return Scenario(src, f"oscillator-{split}", tuple(comps), tuple(conns), Fraction(0), Fraction(stop_time),
+                    Fraction(macro_step), record=record)  # fmt: skip

@@ -273,9 +273,12 @@ def _file_hash(path: Path) -> str:
 
 
 def cache_key(scenario: Scenario, overrides: dict | None, settings: dict) -> str:
-    """Hash of the scenario file, the overrides, the settings and every FMU file."""
+    """Hash of the scenario file (if any), the scene's content, the overrides, the settings and
+    every FMU file."""
     h = hashlib.sha256()
-    h.update(Path(scenario.path).read_bytes())
+    if Path(scenario.path).is_file():
+        h.update(Path(scenario.path).read_bytes())
+    h.update(repr(scenario).encode())
     h.update(json.dumps(overrides or {}, sort_keys=True, default=str).encode())
     h.update(json.dumps(settings, sort_keys=True, default=str).encode())
     for comp in scenario.components:
