@@ -286,3 +286,18 @@ def test_stroke_beyond_the_cylinder_is_an_error(fmu, capsys):
         assert "stroke2 = -0.25 m leaves a chamber volume <= 0" in capsys.readouterr().out
     finally:
         inst.close()
+
+
+def test_unloaded_piston_speed_per_mm_of_spool(fmu):
+    """The flow-coefficient reading documented in model.c: with 1 mm of spool and no load
+    (p_left = p_right = p_s / 2) the valve passes A v with v = 6.38e-3 m/s (actuator 1) and
+    3.99e-3 m/s (actuators 2, 3)."""
+    half = start_pressures([PS / 2] * 6)
+    inst = Instance(fmu, "me", {"spool1": 1e-3, "spool2": 1e-3, "spool3": 1e-3, **half})
+    try:
+        dp = inst.rhs(pressures(inst))
+        speed = dp[0::2] * np.array(V0) / BETA / np.array(AREA)  # Q_left / A
+        np.testing.assert_allclose(speed, [6.38e-3, 3.99e-3, 3.99e-3], rtol=2e-3)
+        np.testing.assert_allclose(dp[1::2], -dp[0::2])  # the other chamber drains alike
+    finally:
+        inst.close()

@@ -37,7 +37,8 @@
  * mm and pressure in kN/m^2".  We read the flow in litres per second (dm^3/s):
  * Q [l/s] = Kv_paper x [mm] sqrt(dp [kN/m^2]), i.e. Kv_SI = Kv_paper sqrt(1e-3)
  * in m^3/(s m Pa^0.5).  An unloaded piston (drop p_s/2 over each orifice) then moves
- * at 6.4e-3 m/s per mm of spool (actuator 1) and 4.0e-3 m/s per mm (actuators 2, 3).
+ * at 6.38e-3 m/s per mm of spool (actuator 1) and 3.99e-3 m/s per mm (actuators 2, 3;
+ * tests/test_hydraulics.py::test_unloaded_piston_speed_per_mm_of_spool).
  * Reading the coefficient in plain SI instead gives 0.20 and 0.13 m/s per mm: the
  * paper's 3 s run with 1.2 / -0.9 / 1.2 mm spool steps would then drive the pistons
  * past their half strokes V0/A = 0.63 m and 0.21 m, so that reading cannot be meant.

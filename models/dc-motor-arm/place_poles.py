@@ -207,6 +207,55 @@ def ab3_region_limit(lam: complex, h_hi: float = 1.0) -> float:
     return lo
 
 
+def closed_loop_jacobian(system: CoupledArm, z0: np.ndarray) -> np.ndarray:
+    """dF/dz at z0 with the gains inside the motor FMU (central differences)."""
+    return linearise(system, z0)[0]
+
+
+def ab3_prediction(jac: np.ndarray) -> float:
+    """Largest AB3 step (s) for which every eigenvalue of jac lies in the stability region."""
+    return min(ab3_region_limit(lam) for lam in np.linalg.eigvals(jac) if lam.real < 0)
+
+
+def ab3_grows(system: CoupledArm, z_ref: np.ndarray, dz0: np.ndarray, h: float, t_end: float) -> bool:
+    """AB3 (Table 1) on the whole coupled system from z_ref + dz0 for t_end seconds (one Euler and
+    one AB2 step start it): True if the deviation ends larger than it began or turns non-finite."""
+    z = z_ref + dz0
+    f1 = f2 = None
+    for _ in range(int(np.ceil(t_end / h))):
+        f0 = system.rhs(z)
+        if f1 is None:
+            z = z + h * f0
+        elif f2 is None:
+            z = z + h / 2 * (3 * f0 - f1)
+        else:
+            z = z + h / 12 * (23 * f0 - 16 * f1 + 5 * f2)
+        f1, f2 = f0, f1
+        if not np.all(np.isfinite(z)) or np.abs(z - z_ref).max() > 1e3:
+            return True
+    return bool(np.linalg.norm(z - z_ref) > np.linalg.norm(dz0))
+
+
+def ab3_stable_step(
+    system: CoupledArm,
+    z_ref: np.ndarray,
+    dz0: np.ndarray,
+    lo: float,
+    hi: float,
+    t_end: float,
+    iterations: int,
+) -> float:
+    """Bisection for the largest AB3 step (s) at which the deviation from z_ref does not grow.
+
+    lo must be stable and hi unstable; the answer lies within (hi - lo) / 2^iterations."""
+    if ab3_grows(system, z_ref, dz0, lo, t_end) or not ab3_grows(system, z_ref, dz0, hi, t_end):
+        raise ValueError(f"bracket [{lo}, {hi}] s does not straddle the AB3 stability limit")
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if ab3_grows(system, z_ref, dz0, mid, t_end) else (mid, hi)
+    return lo
+
+
 def design(manipulator: Path, motor: Path) -> dict[str, float]:
     """Holding currents and gains K (pole placement) for the set point; returns the parameters."""
     tau = holding_torques(manipulator)
