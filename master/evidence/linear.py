@@ -88,7 +88,7 @@ def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] |
     return next(((p, o) for p, o, c, i in scheme.connections if c == consumer and i == name), None)
 
 
-def _inputs(columns: list, k: int, t: float, big_h: float) -> np.ndarray:
+def _inputs(columns: list, t: float, big_h: float) -> np.ndarray:
     """Inputs at t (s after t_n): polynomials through each source's samples up to t_n."""
     vals = []
     for col in columns:
@@ -96,12 +96,16 @@ def _inputs(columns: list, k: int, t: float, big_h: float) -> np.ndarray:
             vals.append(0.0)  # undriven: the linearisation is about its operating value
             continue
         ys, ratio = col
-        vals.append(float(extrapolation_weights(k, t * ratio / big_h) @ ys))
+        vals.append(float(extrapolation_weights(len(ys) - 1, t * ratio / big_h) @ ys))
     return np.array(vals)
 
 
-def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> None:
-    """One step of the component's solver in place (x, histories), u_of_t(theta) input at t + theta h."""
+def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t, count: int = 2) -> None:
+    """One step of the component's solver in place (x, histories), u_of_t(theta) input at t + theta h.
+
+    count: steps already taken (the solver's history length); as fmus/solvers does it, AB2/AB3
+    start with RK4 steps and the semi-implicit midpoint rule with one semi-implicit Euler step.
+    """
 
     def f(xv, theta):
         u = u_of_t(theta)
@@ -109,6 +113,10 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> N
 
     fn = f(x, 0.0)
     kind = comp.solver
+    if (kind == AB2 and count < 1) or (kind == AB3 and count < 2):
+        kind = RK4
+    elif kind == SI_MIDPOINT and count < 1:
+        kind = SI_EULER
     if kind == EULER:
         x += h * fn
     elif kind == AB2:
@@ -130,19 +138,21 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t) -> N
         x += d_new
     else:
         raise ValueError(f"component {comp.name!r}: unknown solver {kind}")
-    if kind not in (SI_EULER, SI_MIDPOINT):
+    if comp.solver not in (SI_EULER, SI_MIDPOINT):
         delta[:] = 0.0  # unused memory must not persist (it would add an eigenvalue 1 to G)
     f2[:] = f1
     f1[:] = fn
 
 
-def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
+def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float, n: int | None = None) -> np.ndarray:
     """One Jacobi macro step of size big_h (s) applied to the extended state z.
 
     As master/backends/component.py does it: the consumer's input for its communication step
     starting at t is the polynomial through the source's samples up to t_n evaluated at t;
     after each communication step the component samples its outputs, y = C x + D u with the
     input u it held over that step (the FMU restores the set value after the step).
+    n: index of the macro step, to reproduce the start-up (lower orders, solver start-up);
+    None: the steady scheme (full histories), as the stability analysis needs it.
     """
     lay = _Layout(scheme)
     z = np.asarray(z, dtype=float)
@@ -158,20 +168,24 @@ def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
         for name in c.inputs:
             d = _driver(scheme, c.name, name)
             src = comps[d[0]] if d else None
-            columns.append((samples[src.name][:, src.outputs.index(d[1])], src.step_ratio) if d else None)
+            used = k if n is None else min(k, n * src.step_ratio)  # start-up: samples that exist
+            columns.append(
+                (samples[src.name][: used + 1, src.outputs.index(d[1])], src.step_ratio) if d else None
+            )
         h_comm = big_h / c.step_ratio
         h = h_comm / c.substeps
         new = []
         for j in range(c.step_ratio):
             t_comm = j * h_comm  # step start, s after t_n
-            u0 = _inputs(columns, k, t_comm, big_h)
+            u0 = _inputs(columns, t_comm, big_h)
             for m in range(c.substeps):
                 t0 = t_comm + m * h
                 if scheme.inputs == "hold":
                     u_of_t = _constant(u0)
                 else:
-                    u_of_t = _polynomial(columns, k, t0, h, big_h)
-                _solver_step(c, h, x, f1, f2, delta, u_of_t)
+                    u_of_t = _polynomial(columns, t0, h, big_h)
+                count = 2 if n is None else n * c.step_ratio * c.substeps + j * c.substeps + m
+                _solver_step(c, h, x, f1, f2, delta, u_of_t, count)
             new.append(c.c @ x + (c.d @ u0 if len(u0) else 0.0))
         hist = np.vstack([np.array(new[::-1]).reshape(-1, len(c.outputs)), samples[c.name]])[: k + 1]
         out[lay.samples[c.name]] = hist.ravel()
@@ -182,8 +196,8 @@ def _constant(u0: np.ndarray):
     return lambda theta: u0
 
 
-def _polynomial(columns: list, k: int, t0: float, h: float, big_h: float):
-    return lambda theta: _inputs(columns, k, t0 + theta * h, big_h)
+def _polynomial(columns: list, t0: float, h: float, big_h: float):
+    return lambda theta: _inputs(columns, t0 + theta * h, big_h)
 
 
 def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:
@@ -220,3 +234,37 @@ def largest_stable_step(scheme: LinearScheme, h_min: float, h_max: float, rel_to
         else:
             hi = mid
     return lo
+
+
+def initial_state(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> np.ndarray:
+    """Extended state at the start: states x0 (per component), consistent output samples at t_0."""
+    lay = _Layout(scheme)
+    z = np.zeros(lay.size)
+    y = {c.name: np.zeros(len(c.outputs)) for c in scheme.components}
+    for _ in range(len(scheme.components) + 1):  # settles any acyclic feedthrough chain
+        for c in scheme.components:
+            u = np.array([0.0 if d is None else y[d[0]][_index(scheme, d)] for d in
+                          (_driver(scheme, c.name, i) for i in c.inputs)])  # fmt: skip
+            y[c.name] = c.c @ x0[c.name] + (c.d @ u if len(u) else 0.0)
+    for c in scheme.components:
+        z[lay.slices[c.name][0]] = x0[c.name]
+        z[lay.samples[c.name]][: len(c.outputs)] = y[c.name]
+    return z
+
+
+def _index(scheme: LinearScheme, driver: tuple[str, str]) -> int:
+    comp = next(c for c in scheme.components if c.name == driver[0])
+    return comp.outputs.index(driver[1])
+
+
+def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int) -> np.ndarray:
+    """States of every component at the macro points 0 .. n_steps, start-up included; shape
+    (n_steps + 1, total states) in component order."""
+    lay = _Layout(scheme)
+    z = initial_state(scheme, x0)
+    idx = np.concatenate([np.arange(lay.size)[lay.slices[c.name][0]] for c in scheme.components])
+    out = [z[idx]]
+    for n in range(n_steps):
+        z = macro_step(scheme, z, big_h, n)
+        out.append(z[idx])
+    return np.array(out)
