@@ -12,8 +12,6 @@ from pathlib import Path
 
 import fmpy
 
-import master
-
 PROJECT_SCHEME = "project:"
 
 # FMI 2 names -> their FMI 3 equivalents, so both versions compare alike.
@@ -58,9 +56,11 @@ class FmuInfo:
     can_interpolate_inputs: bool
 
 
-def project_fmus_dir() -> Path:
-    """The project's FMU sources: fmus/ beside the master package."""
-    return Path(master.__file__).resolve().parents[1] / "fmus"
+def project_fmu_names() -> list[str]:
+    """The project's FMUs: folders fmus/NAME with a model.c (see master.fmubuild)."""
+    from master import fmubuild
+
+    return fmubuild.project_fmu_names()
 
 
 class SourceError(Exception):
@@ -72,7 +72,7 @@ def resolve_source(source: str, base: Path, inside: Path | None = None) -> Path:
 
     1. "project:NAME": the project's FMU NAME (fmus/NAME), built if missing or stale.
     2. otherwise a path relative to the folder of the .ssd (`base`); used if that file exists.
-    3. otherwise a bare NAME (no '/', no suffix) with fmus/NAME present: as in 1.
+    3. otherwise the NAME of a project FMU (a folder fmus/NAME with a model.c): as in 1.
     `inside`: for unpacked archives, the folder a relative path may not leave.
     """
     if source.startswith(PROJECT_SCHEME):
@@ -84,16 +84,17 @@ def resolve_source(source: str, base: Path, inside: Path | None = None) -> Path:
         raise SourceError(f'source "{source}" points outside the archive')
     if candidate.is_file():
         return candidate
-    bare = "/" not in source and "." not in source
-    if bare and (project_fmus_dir() / source).is_dir():
+    if source in project_fmu_names():
         return _project(source)
     raise SourceError(f'FMU file "{source}" not found (looked for {candidate})')
 
 
 def _project(name: str) -> Path:
-    if not name or "/" in name or not (project_fmus_dir() / name).is_dir():
-        raise SourceError(f'no project FMU "{name}" (no folder {project_fmus_dir() / name})')
-    from master import fmubuild  # built on demand, only when a scenario asks for it
+    from master import fmubuild
+
+    names = fmubuild.project_fmu_names()
+    if name not in names:
+        raise SourceError(f'no project FMU "{name}" (the project has: {", ".join(names)})')
 
     try:
         return Path(fmubuild.fmu_path(name))
