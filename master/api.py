@@ -114,7 +114,11 @@ def plan(sc: Scenario) -> Plan:
         except FmuError as e:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
-        caps[c.name] = Capability(bool(md.coSimulation.canInterpolateInputs), md.fmiVersion)
+        caps[c.name] = Capability(
+            bool(md.coSimulation.canInterpolateInputs),
+            md.fmiVersion,
+            bool(md.coSimulation.canGetAndSetFMUstate),
+        )
     return build_plan(sc, variables, caps)
 
 

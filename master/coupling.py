@@ -65,6 +65,12 @@ class History:
         self.buf = np.zeros((capacity, n_values)) if buf is None else buf
         self.latest = -1  # index of the newest sample
 
+    def copy(self) -> History:
+        """An independent copy (a start-up sweep reads the previous sweep's samples from it)."""
+        h = History(self.buf.shape[1], self.capacity, self.buf.copy())
+        h.latest = self.latest
+        return h
+
     def push(self, j: int, values: np.ndarray) -> None:
         """Store sample j (must be the next one)."""
         self.buf[j % self.capacity] = values

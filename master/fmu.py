@@ -89,6 +89,16 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
     return out
 
 
+def feedthrough_outputs(md: ModelDescription) -> set[str]:
+    """Outputs that may depend directly on inputs (no dependency list: assume they do)."""
+    out = set()
+    for u in md.outputs:
+        deps = u.dependencies
+        if deps is None or any(d.causality == "input" for d in deps):
+            out.add(u.variable.name)
+    return out
+
+
 def safe_extract(path: Path, dest: Path) -> Path:
     """Extract the FMU archive `path` into `dest`; refuse members that would land outside it."""
     dest = Path(dest).resolve()
@@ -151,6 +161,7 @@ class Fmu:
         cs = self.md.coSimulation
         self.can_interpolate_inputs = bool(cs.canInterpolateInputs) and not self.fmi3
         self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
         self._own_dir = workdir is None
         self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
@@ -323,6 +334,26 @@ class Fmu:
             self.slave.setRealInputDerivatives(list(port.vrs)[: port.n], [order] * port.n, list(values))
         except FMICallException as e:
             raise FmuError(self.describe(str(e))) from e
+
+    def get_state(self) -> object:
+        """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""
+        try:
+            return self.slave.getFMUState() if self.fmi3 else self.slave.getFMUstate()
+        except FMICallException as e:
+            raise FmuError(self.describe(f"cannot save the FMU state: {e}")) from e
+
+    def set_state(self, state: object) -> None:
+        """Restore a state saved by `get_state`."""
+        try:
+            self.slave.setFMUState(state) if self.fmi3 else self.slave.setFMUstate(state)
+        except FMICallException as e:
+            raise FmuError(self.describe(f"cannot restore the FMU state: {e}")) from e
+
+    def free_state(self, state: object) -> None:
+        try:
+            self.slave.freeFMUState(state) if self.fmi3 else self.slave.freeFMUstate(state)
+        except FMICallException as e:
+            raise FmuError(self.describe(f"cannot free the FMU state: {e}")) from e
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from communication point t by h (s); FmuError if the FMU refuses."""

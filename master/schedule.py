@@ -27,6 +27,7 @@ class Capability:
 
     can_interpolate_inputs: bool = False
     fmi_version: str = "2.0"
+    can_get_set_state: bool = False
 
 
 @dataclass(frozen=True)
@@ -71,16 +72,18 @@ class Link:
     k_source: int  # effective step ratios
     k_consumer: int
 
-    def window(self, n: int, j: int) -> tuple[int, int]:
+    def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
 
         Returns (j_end, order_used): the polynomial goes through source samples
         j_end - order_used .. j_end. j_end is the first source sample at or after the end of the
         consumer's step, but no later than what exists (Jacobi: t_n; source first: t_n+1).
         order_used < order only at start-up, while there is not enough history.
+        relaxed: a start-up sweep that repeats macro step n with the source's samples of the
+        previous sweep, so samples up to t_n+1 exist as if the source went first.
         """
         ks, kc = self.k_source, self.k_consumer
-        available = (n + 1) * ks if self.source_first else n * ks
+        available = (n + 1) * ks if (self.source_first or relaxed) else n * ks
         j_end = min(available, -((-(j + 1) * ks) // kc))
         return j_end, min(self.order, j_end)
 
@@ -117,6 +120,10 @@ class Plan:
     record_every: int  # macro steps between recorded rows
     macro_clock: Clock
     notes: tuple[str, ...] = field(default=())  # start-up and capability notes for the run log
+    # Start-up (the paper's step 3): macro steps 0 .. startup_steps-1 are each repeated
+    # `startup_sweeps` times from saved FMU states with relaxed windows (Link.window).
+    startup_steps: int = 0
+    startup_sweeps: int = 0
 
     def component(self, name: str) -> PlanComponent:
         for c in self.components:
@@ -258,6 +265,17 @@ def build_plan(
                 f"start-up: {src} -> {dst} ({', '.join(lk.inputs)}) uses {steps}; "
                 f"full order {order_} from t = {float(start + len(su) * H):g} s"
             )
+    startup_steps = max((len(lk.startup()) for lk in links), default=0)
+    startup_sweeps = 0
+    if startup_steps:
+        if all(capabilities.get(n, Capability()).can_get_set_state for n in names):
+            startup_sweeps = max(lk.order for lk in links)
+            notes.append(
+                f"start-up: macro steps 0..{startup_steps - 1} are repeated {startup_sweeps} time(s) from "
+                "saved FMU states with interpolation over the step (whole system integrated together)"
+            )
+        else:
+            notes.append("start-up: not every FMU can save its state, so start-up steps are not repeated")
     for name, pc in comps.items():
         if pc.interpolate_inputs:
             orders = [lk.order for lk in links if lk.consumer == name]
@@ -317,4 +335,6 @@ def build_plan(
         record_every=every,
         macro_clock=Clock.make(start, H, 1),
         notes=tuple(notes),
+        startup_steps=startup_steps if startup_sweeps else 0,
+        startup_sweeps=startup_sweeps,
     )

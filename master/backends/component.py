@@ -86,6 +86,8 @@ class ComponentRunner:
             pos += len(lk.inputs)
             self.links.append(_InLink(lk, cols, slots, float(plan.component(lk.source).step)))
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
+        # outputs that depend directly on driven inputs need those inputs at the end of each step
+        self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
         max_order = max([lk.order for lk in links], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
@@ -101,27 +103,34 @@ class ComponentRunner:
                 self.record_other.append((1 + i, v))
 
     # -- inputs ---------------------------------------------------------------------------------
-    def _fill_inputs(self, n: int, j: int, histories: dict[str, History]) -> None:
-        """Input port values for communication point j (in macro step n)."""
+    def _fill_inputs(
+        self, n: int, j: int, histories: dict[str, History], at: int | None = None, relaxed: bool = False
+    ) -> None:
+        """Input port values of step j (in macro step n) at communication point `at` (default j).
+
+        at = j + 1 evaluates the same polynomials at the step's end: the inputs that go with
+        the outputs read there, so that direct-feedthrough outputs are not a step stale.
+        """
         vals = self.inp.values
         kc = self.pc.ratio
+        at = j if at is None else at
         for il in self.links:
             lk = il.link
-            j_end, p = lk.window(n, j)
-            w = weights(p, j * lk.k_source - j_end * kc, kc)
+            j_end, p = lk.window(n, j, relaxed)
+            w = weights(p, at * lk.k_source - j_end * kc, kc)
             histories[lk.source].combine(j_end, w, il.columns, il.value)
             vals[il.slots] = il.value
         if self.stimuli:
-            t = self.clock.time(j)
+            t = self.clock.time(at)
             for slot, s, start in self.stimuli:
                 vals[slot] = stimulus_value(s, t, start)
 
-    def _set_derivatives(self, n: int, j: int, histories: dict[str, History]) -> None:
+    def _set_derivatives(self, n: int, j: int, histories: dict[str, History], relaxed: bool = False) -> None:
         """Hand the polynomials' derivatives at the step start to the FMU (canInterpolateInputs)."""
         kc = self.pc.ratio
         for il in self.links:
             lk = il.link
-            j_end, p = lk.window(n, j)
+            j_end, p = lk.window(n, j, relaxed)
             for d in range(1, min(p, self.pc.derivative_order) + 1):
                 w = weights(p, j * lk.k_source - j_end * kc, kc, d)
                 histories[lk.source].combine(j_end, w, il.columns, il.value)
@@ -151,8 +160,12 @@ class ComponentRunner:
         for slot, s, start in self.stimuli:
             vals[slot] = stimulus_value(s, t, start)
 
-    def macro_step(self, n: int, histories: dict[str, History]) -> None:
-        """Advance through macro step n: `ratio` communication steps of h each."""
+    def macro_step(self, n: int, histories: dict[str, History], relaxed: bool = False) -> None:
+        """Advance through macro step n: `ratio` communication steps of h each.
+
+        relaxed: a start-up sweep (see Plan.startup_sweeps); `histories` then hold the sources'
+        samples of macro step n from the previous sweep.
+        """
         k = self.pc.ratio
         h = self.h
         fmu = self.fmu
@@ -160,13 +173,16 @@ class ComponentRunner:
             self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(self.history.buf[0]))
         for j in range(n * k, n * k + k):
             t = self.clock.time(j)
-            self._fill_inputs(n, j, histories)
+            self._fill_inputs(n, j, histories, relaxed=relaxed)
             t0 = perf()
             try:
                 self.inp.set()
                 if self.pc.interpolate_inputs:
-                    self._set_derivatives(n, j, histories)
+                    self._set_derivatives(n, j, histories, relaxed)
                 fmu.do_step(t, h)
+                if self.feedthrough:
+                    self._fill_inputs(n, j, histories, j + 1, relaxed)
+                    self.inp.set()
                 vals = self.out.get()
             except FmuError as e:
                 raise SimulationError(

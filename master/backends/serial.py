@@ -58,9 +58,31 @@ class SerialBackend:
             r.history.push(0, r.out.values)
 
     def step(self, n: int) -> None:
-        """Advance every component through macro step n."""
-        for r in self.runners:
-            r.macro_step(n, self.histories)
+        """Advance every component through macro step n (repeated at start-up, see Plan)."""
+        if n >= self.plan.startup_steps:
+            for r in self.runners:
+                r.macro_step(n, self.histories)
+            return
+        saved = {r.name: self._call(r, n, r.fmu.get_state) for r in self.runners}
+        try:
+            for r in self.runners:
+                r.macro_step(n, self.histories)
+            for _ in range(self.plan.startup_sweeps):
+                previous = {r.name: r.history.copy() for r in self.runners}
+                for r in self.runners:
+                    self._call(r, n, r.fmu.set_state, saved[r.name])
+                    r.macro_step(n, previous, relaxed=True)
+        finally:
+            for r in self.runners:
+                self._call(r, n, r.fmu.free_state, saved[r.name])
+
+    def _call(self, r: ComponentRunner, n: int, fn, *args):
+        """An FMU state call of the start-up, failures named with component and time."""
+        try:
+            return fn(*args)
+        except FmuError as e:
+            t = r.clock.time(n * r.pc.ratio)
+            raise SimulationError(f"{e} at t={t}", r.name, t) from e
 
     def record(self, n: int, row: np.ndarray) -> None:
         """Recorded values at the end of macro step n (n = -1: start time) into row[1:]."""
