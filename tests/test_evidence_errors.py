@@ -19,13 +19,18 @@ def test_scaled_max_and_end_errors():
     assert rep.n_times == 11
 
 
-def test_result_on_coarser_grid_is_compared_at_its_own_times():
+def test_grids_are_compared_at_shared_times_only():
     tr = np.linspace(0.0, 2.0, 201)
     ref = Trajectory(tr, {"y": tr**2})
     t = np.linspace(0.0, 2.0, 5)
     rep = compare(Trajectory(t, {"y": t**2 + 0.04}), ref)
     assert rep.worst_max == pytest.approx(0.01)  # 0.04 over a range of 4
     assert rep.n_times == 5
+    fine = np.linspace(0.0, 2.0, 401)  # finer result: only the reference's times count
+    rep = compare(Trajectory(fine, {"y": fine**2 + np.where(np.arange(401) % 2, 1.0, 0.0)}), ref)
+    assert rep.worst_max == 0.0 and rep.n_times == 201
+    with pytest.raises(ValueError, match="share no time"):
+        compare(Trajectory(t + 0.123, {"y": t}), ref)
 
 
 def test_non_finite_result_is_infinite_error():

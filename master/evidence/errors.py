@@ -1,9 +1,8 @@
 """Error measures of a co-simulation result against a reference solution.
 
 A result is a `Trajectory`: a time grid (s) and, per recorded variable ("component.variable"),
-its values on that grid.  Errors are compared on a common grid: the reference is interpolated
-linearly onto the times of the result that lie inside the reference's time span (the reference
-is recorded on a much finer or equal grid, so interpolation adds nothing noticeable).
+its values on that grid.  Errors are compared on the common time grid: the times the result
+and the reference share (no interpolation, which would add its own error).
 
 Measures (documented in docs/evidence/README.md):
 - scaled max error of a variable: max_t |y(t) - y_ref(t)| / range(y_ref), where range is
@@ -54,6 +53,16 @@ def variable_range(y: np.ndarray) -> float:
     return span if span > 0.0 else 1.0
 
 
+def common_times(t: np.ndarray, tr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (into t, into tr) of the times two increasing grids share (to 1e-9 relative)."""
+    k = np.clip(np.searchsorted(tr, t), 1, max(len(tr) - 1, 1))
+    left = np.abs(tr[k - 1] - t) <= np.abs(tr[np.minimum(k, len(tr) - 1)] - t)
+    nearest = np.where(left, k - 1, np.minimum(k, len(tr) - 1))
+    tol = 1e-9 * max(1.0, float(np.max(np.abs(tr))))
+    hit = np.abs(tr[nearest] - t) <= tol
+    return np.flatnonzero(hit), nearest[hit]
+
+
 def compare(result: Trajectory, reference: Trajectory, variables: list[str] | None = None) -> ErrorReport:
     """Scaled errors of `result` against `reference` on the result's times inside the reference span.
 
@@ -69,17 +78,15 @@ def compare(result: Trajectory, reference: Trajectory, variables: list[str] | No
                 raise ValueError(f"variable {n!r} missing in the {label}")
     t = np.asarray(result.time, dtype=float)
     tr = np.asarray(reference.time, dtype=float)
-    tol = 1e-9 * max(1.0, abs(tr[-1]))
-    inside = (t >= tr[0] - tol) & (t <= tr[-1] + tol)
-    if not np.any(inside):
-        raise ValueError("result and reference share no time span")
-    tc = np.clip(t[inside], tr[0], tr[-1])
+    mine, theirs = common_times(t, tr)
+    if len(mine) == 0:
+        raise ValueError("result and reference share no time on their grids")
     max_err: dict[str, float] = {}
     end_err: dict[str, float] = {}
     for n in names:
-        y = np.asarray(result.values[n], dtype=float)[inside]
+        y = np.asarray(result.values[n], dtype=float)[mine]
         yr_full = np.asarray(reference.values[n], dtype=float)
-        yr = np.interp(tc, tr, yr_full)
+        yr = yr_full[theirs]
         scale = variable_range(yr_full)
         if not np.all(np.isfinite(y)):
             max_err[n] = end_err[n] = float("inf")
@@ -94,5 +101,5 @@ def compare(result: Trajectory, reference: Trajectory, variables: list[str] | No
         worst_max=max_err[worst_var],
         worst_max_variable=worst_var,
         worst_end=max(end_err.values()),
-        n_times=int(np.count_nonzero(inside)),
+        n_times=len(mine),
     )
