@@ -120,7 +120,9 @@ def describe(name: str) -> dict[str, Any]:
     """The model's C table as a dict (compiles and runs fmus/fmi/describe.c with the model)."""
     with tempfile.TemporaryDirectory(prefix=f"describe-{name}-") as tmp:
         exe = Path(tmp) / "describe"
-        args = [_compiler(), *CFLAGS, *_include_flags(name), str(FMI_DIR / "describe.c")]
+        # Only the table is read: no need to optimise (-O0 compiles three times faster).
+        flags = [f for f in CFLAGS if f != "-O2"] + ["-O0"]
+        args = [_compiler(), *flags, *_include_flags(name), str(FMI_DIR / "describe.c")]
         args += [str(p) for p in _c_sources(name)] + ["-o", str(exe), "-lm"]
         _compile(args, f"describing model {name}")
         proc = subprocess.run([str(exe)], capture_output=True, text=True)
@@ -462,7 +464,7 @@ def build_fmu(name: str) -> Path:
         stage = Path(tmp) / "fmu"
         binary = stage / "binaries" / PLATFORM / f"{name}.so"
         binary.parent.mkdir(parents=True)
-        args = [_compiler(), *CFLAGS, "-shared", *_include_flags(name)]
+        args = [_compiler(), *CFLAGS, "-shared", "-Wl,--no-undefined", *_include_flags(name)]
         args += [str(p) for p in _c_sources(name)] + ["-o", str(binary), "-lm"]
         _compile(args, f"building FMU {name}")
         sources = stage / "sources"
@@ -503,6 +505,11 @@ def build_all() -> list[Path]:
     return [build_fmu(name) for name in project_fmu_names()]
 
 
+def _shown(path: Path) -> str:
+    """Path relative to the repository when inside it."""
+    return str(path.relative_to(REPO_DIR)) if path.is_relative_to(REPO_DIR) else str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``[--write-xml] [name ...]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="python -m master.fmubuild", description=__doc__.split("\n")[0])
@@ -513,9 +520,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.write_xml:
             for path in write_xml(names):
-                print(f"wrote {path.relative_to(REPO_DIR)}")
+                print(f"wrote {_shown(path)}")
         for name in names:
-            print(f"built {build_fmu(name).relative_to(REPO_DIR)}")
+            print(f"built {_shown(build_fmu(name))}")
     except FmuBuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

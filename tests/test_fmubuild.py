@@ -1,0 +1,130 @@
+"""master.fmubuild: XML generation from the C tables, compilation, packaging, rebuild rules."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from master import fmubuild
+
+
+@pytest.mark.parametrize("name", fmubuild.project_fmu_names())
+def test_checked_in_model_description_equals_generated(name: str) -> None:
+    checked_in = fmubuild.FMUS_DIR / name / "modelDescription.xml"
+    assert checked_in.is_file(), f"run: python -m master.fmubuild --write-xml {name}"
+    assert checked_in.read_text(encoding="utf-8") == fmubuild.model_description_xml(name)
+
+
+def test_project_fmu_names() -> None:
+    names = fmubuild.project_fmu_names()
+    assert {"dahlquist", "msd"} <= set(names)
+    assert all((fmubuild.FMUS_DIR / n / "model.c").is_file() for n in names)
+    assert "fmi" not in names and "solvers" not in names
+
+
+def test_fmu_contents_and_sources_compile_on_their_own(tmp_path: Path) -> None:
+    path = fmubuild.fmu_path("msd")
+    assert path == fmubuild.BUILD_DIR / "msd.fmu"
+    with zipfile.ZipFile(path) as zf:
+        names = set(zf.namelist())
+        zf.extractall(tmp_path)
+    assert {"modelDescription.xml", "binaries/linux64/msd.so"} <= names
+    for src in ("model.c", "fmi2.c", "instance.c", "solvers.c", "lu.c", "model.h", "solvers.h", "instance.h"):
+        assert f"sources/{src}" in names
+    assert "sources/describe.c" not in names
+    sources = tmp_path / "sources"
+    proc = subprocess.run(
+        ["cc", *fmubuild.CFLAGS, "-shared", f"-I{sources}", *map(str, sorted(sources.glob("*.c"))), "-lm"]
+        + ["-o", str(tmp_path / "again.so")],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_base_units() -> None:
+    assert fmubuild.base_unit("N.m/rad") == (1.0, {"kg": 1, "m": 2, "s": -2, "rad": -1})
+    assert fmubuild.base_unit("1/s") == (1.0, {"s": -1})
+    assert fmubuild.base_unit("m3/s") == (1.0, {"m": 3, "s": -1})
+    assert fmubuild.base_unit("MPa") == (1e6, {"kg": 1, "m": -1, "s": -2})
+    assert fmubuild.base_unit("furlong") is None
+
+
+# ------------------------------------------------ a sandbox copy of fmus/
+
+
+@pytest.fixture
+def sandbox(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A private fmus/ (layer, solvers, dahlquist) and build folder, so the repo stays untouched."""
+    fmus = tmp_path / "fmus"
+    for part in ("fmi", "solvers", "dahlquist"):
+        shutil.copytree(fmubuild.FMUS_DIR / part, fmus / part)
+    monkeypatch.setattr(fmubuild, "FMUS_DIR", fmus)
+    monkeypatch.setattr(fmubuild, "FMI_DIR", fmus / "fmi")
+    monkeypatch.setattr(fmubuild, "SOLVERS_DIR", fmus / "solvers")
+    monkeypatch.setattr(fmubuild, "BUILD_DIR", tmp_path / "build")
+    return fmus
+
+
+def test_compiler_errors_carry_the_compiler_output(sandbox: Path) -> None:
+    model = sandbox / "dahlquist" / "model.c"
+    model.write_text(model.read_text() + "\nthis is not C;\n")
+    with pytest.raises(fmubuild.FmuBuildError) as info:
+        fmubuild.build_fmu("dahlquist")
+    message = str(info.value)
+    assert "compiler failed" in message and "model.c" in message and "error:" in message
+
+
+def test_inconsistent_table_is_reported_with_file_and_variable(sandbox: Path) -> None:
+    model = sandbox / "dahlquist" / "model.c"
+    model.write_text(model.read_text().replace('{"y0", T_REAL', '{"lambda", T_REAL'))
+    with pytest.raises(fmubuild.FmuBuildError) as info:
+        fmubuild.describe("dahlquist")
+    assert str(model) in str(info.value)
+    assert 'variable 3 "lambda": duplicate name' in str(info.value)
+
+
+def test_stale_xml_is_refused_until_regenerated(sandbox: Path) -> None:
+    xml = sandbox / "dahlquist" / "modelDescription.xml"
+    model = sandbox / "dahlquist" / "model.c"
+    model.write_text(model.read_text().replace('"initial value y(0)"', '"initial value"'))
+    with pytest.raises(fmubuild.FmuBuildError, match="out of date.*--write-xml dahlquist"):
+        fmubuild.build_fmu("dahlquist")
+    xml.unlink()
+    with pytest.raises(fmubuild.FmuBuildError, match="missing"):
+        fmubuild.build_fmu("dahlquist")
+    assert fmubuild.main(["--write-xml", "dahlquist"]) == 0
+    assert 'description="initial value"' in xml.read_text()
+    assert (fmubuild.BUILD_DIR / "dahlquist.fmu").is_file()
+    assert fmubuild.main(["no_such_model"]) == 1
+
+
+def test_fmu_path_rebuilds_only_when_a_source_is_newer(sandbox: Path) -> None:
+    path = fmubuild.fmu_path("dahlquist")
+    built = path.stat().st_mtime_ns
+    assert fmubuild.fmu_path("dahlquist") == path and path.stat().st_mtime_ns == built
+    source = sandbox / "solvers" / "solvers.c"
+    later = path.stat().st_mtime + 5
+    os.utime(source, (later, later))
+    fmubuild.fmu_path("dahlquist")
+    assert path.stat().st_mtime_ns != built
+
+
+def _build(_: int) -> str:
+    return str(fmubuild.build_fmu("dahlquist"))
+
+
+def test_concurrent_builds_produce_one_valid_fmu(sandbox: Path) -> None:
+    with multiprocessing.get_context("fork").Pool(3) as pool:
+        paths = pool.map(_build, range(3))
+    assert len(set(paths)) == 1
+    with zipfile.ZipFile(paths[0]) as zf:
+        assert zf.testzip() is None
+    leftovers = [p for p in fmubuild.BUILD_DIR.iterdir() if p.name != "dahlquist.fmu"]
+    assert leftovers == []
