@@ -1,8 +1,8 @@
 """Worker processes of the parallel backend: start, one synchronisation per macro step, isolation.
 
 Each worker runs a `Task` (one or more components) in its own process.  Per macro step the
-master writes the step number into shared memory and releases each worker's `go` semaphore;
-each worker steps its components, publishes its outputs (the task writes them into shared
+master writes a command (op, a, b) into shared memory and releases each worker's `go`
+semaphore; each worker runs it (steps its components, publishes its outputs into shared
 arrays) and releases its `done` semaphore.  That pair of semaphores is the one
 synchronisation point per step: measured on 2 cores it costs less than a pipe round trip,
 a `multiprocessing.Barrier` or spinning on a shared counter (see benchmarks/parallel.py).
@@ -28,7 +28,8 @@ import numpy as np
 
 from master.backends.shm import SharedArrays
 
-STOP = -1  # command: leave the loop
+STOP = -1  # op: leave the loop
+NOP = 0  # op: do nothing (measures the synchronisation cost)
 MSG_BYTES = 2048  # room for one error message per worker
 POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
 
@@ -38,25 +39,23 @@ IDLE, RUNNING, FAILED = 0, 1, 2  # worker states in shared memory
 class Task(Protocol):
     """What a worker runs: built in the worker process, then stepped once per macro step."""
 
-    components: Sequence[str]  # names, for error messages
-
     def setup(self, where: np.ndarray) -> None:
-        """Instantiate and initialise; store the index of the component being worked on in where[0]."""
+        """Instantiate; store the index of the component being worked on in where[0]."""
 
-    def step(self, n: int, where: np.ndarray) -> None:
-        """Run macro step n (all substeps of all components); store the component index in where[0]."""
+    def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
+        """Run command `op` with arguments a, b (e.g. a macro step); keep where[0] up to date."""
 
     def close(self) -> None:
         """Free what setup() made."""
 
 
 class WorkerFailure(RuntimeError):
-    """A worker failed: `component` (name or None), macro step `step` (-1: set-up), `cause`."""
+    """A worker failed: `component` (name or None), `cause`; `time` (s) if the failing code said."""
 
-    def __init__(self, component: str | None, step: int, cause: str):
+    def __init__(self, component: str | None, cause: str, time: float | None = None):
         self.component = component
-        self.step = step
         self.cause = cause
+        self.time = time
         where = f"component '{component}'" if component else "a worker"
         super().__init__(f"{where}: {cause}")
 
@@ -84,6 +83,7 @@ def _worker_main(index: int, factory: Callable[[], Task], control: SharedArrays,
     where = control["where"][index : index + 1]
     msg = control["msg"][index]
     cmd = control["cmd"]
+    err_time = control["err_time"][index : index + 1]
     task = None
     try:
         state[0] = RUNNING
@@ -93,18 +93,21 @@ def _worker_main(index: int, factory: Callable[[], Task], control: SharedArrays,
         done.release()
         while True:
             go.acquire()
-            n = int(cmd[0])
-            if n == STOP:
+            op, a, b = (int(x) for x in cmd)
+            if op == STOP:
                 break
             state[0] = RUNNING
-            task.step(n, where)
+            if op != NOP:
+                task.command(op, a, b, where)
             state[0] = IDLE
             done.release()
     except BaseException as e:  # report, then end: the master decides what happens next
-        text = f"{type(e).__name__}: {e}" if str(e) else "".join(traceback.format_exception_only(e)).strip()
+        text = str(e) if str(e) else "".join(traceback.format_exception_only(e)).strip()
         raw = text.encode("utf-8", "replace")[: MSG_BYTES - 1]
         msg[: len(raw)] = np.frombuffer(raw, dtype=np.uint8)
         msg[len(raw)] = 0
+        t = getattr(e, "time", None)
+        err_time[0] = float(t) if isinstance(t, (int, float)) else np.nan
         state[0] = FAILED
         done.release()
     finally:
@@ -128,7 +131,8 @@ class WorkerPool:
     """Worker processes, each running one task, stepped in lock-step by the master.
 
     tasks: (component names, factory) per worker; the factory runs in the worker process and
-    must be picklable under the spawn/forkserver start methods.  Times are in seconds.
+    must be picklable under the spawn/forkserver start methods.  Times are in seconds:
+    `step_timeout` bounds each command, `setup_timeout` the start-up.
     """
 
     def __init__(
@@ -145,7 +149,8 @@ class WorkerPool:
         w = len(tasks)
         self.control = SharedArrays(
             {
-                "cmd": ((1,), "int64"),
+                "cmd": ((3,), "int64"),
+                "err_time": ((w,), "float64"),
                 "state": ((w,), "int64"),
                 "where": ((w,), "int64"),
                 "msg": ((w, MSG_BYTES), "uint8"),
@@ -165,43 +170,46 @@ class WorkerPool:
                 )
                 p.start()
                 self.procs.append(p)
-            self._wait_all(-1, self.setup_timeout)
+            self._wait(range(w), self.setup_timeout)
         except BaseException:
             self.close()
             raise
 
-    def step(self, n: int) -> None:
-        """Run macro step n in all workers and wait until all have published their outputs."""
-        self.control["cmd"][0] = n
-        for g in self.go:
-            g.release()
-        self._wait_all(n, self.step_timeout)
+    def run(self, op: int, a: int = 0, b: int = 0, workers: Sequence[int] | None = None) -> None:
+        """Run command (op, a, b) in `workers` (default: all) and wait until each has finished."""
+        if self.closed:
+            raise RuntimeError("worker pool is closed")
+        cmd = self.control["cmd"]
+        cmd[0], cmd[1], cmd[2] = op, a, b
+        ids = range(len(self.procs)) if workers is None else workers
+        for i in ids:
+            self.go[i].release()
+        self._wait(ids, self.step_timeout)
 
-    def _wait_all(self, n: int, timeout: float) -> None:
-        """Collect every worker's `done` for macro step n (-1: set-up); raise WorkerFailure on trouble."""
+    def _wait(self, ids: Sequence[int], timeout: float) -> None:
+        """Collect the `done` of workers `ids`; raise WorkerFailure on a crash, an error or a hang."""
         deadline = time.monotonic() + timeout
         poll = min(POLL_S, timeout)
-        for i, sem in enumerate(self.done):
+        for i in ids:
+            sem = self.done[i]
             while not sem.acquire(timeout=poll):
-                self._check_alive(n)
+                self._check_alive()
                 if time.monotonic() > deadline:
                     self.procs[i].kill()  # a hung FMU never returns to read the stop command
-                    what = "set-up" if n < 0 else "macro step"
-                    raise self._failure(
-                        i, n, f"hang: {what} not finished within the timeout of {timeout:g} s"
-                    )
-            self._check(i, n)
+                    raise self._failure(i, f"hang: no answer within the step timeout of {timeout:g} s")
+            self._check(i)
 
-    def _check_alive(self, n: int) -> None:
+    def _check_alive(self) -> None:
         for j, p in enumerate(self.procs):
             code = p.exitcode
             if code is not None:
-                self._check(j, n)  # it may have reported an exception before ending
-                raise self._failure(j, n, f"worker process {_signal_name(code)}")
+                self._check(j)  # it may have reported an exception before ending
+                raise self._failure(j, f"worker process {_signal_name(code)}")
 
-    def _check(self, i: int, n: int) -> None:
+    def _check(self, i: int) -> None:
         if self.control["state"][i] == FAILED:
-            raise self._failure(i, n, self._message(i))
+            t = float(self.control["err_time"][i])
+            raise self._failure(i, self._message(i), None if np.isnan(t) else t)
 
     def _message(self, i: int) -> str:
         raw = bytes(self.control["msg"][i])
@@ -212,8 +220,8 @@ class WorkerPool:
         k = int(self.control["where"][i])
         return names[k] if 0 <= k < len(names) else (names[0] if len(names) == 1 else None)
 
-    def _failure(self, i: int, n: int, cause: str) -> WorkerFailure:
-        return WorkerFailure(self._component(i), n, cause)
+    def _failure(self, i: int, cause: str, t: float | None = None) -> WorkerFailure:
+        return WorkerFailure(self._component(i), cause, t)
 
     def close(self) -> None:
         """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory."""

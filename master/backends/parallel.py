@@ -1,0 +1,312 @@
+"""Parallel backend: each component (or each scenario group) in its own worker process.
+
+The workers run exactly the serial backend's per-component code (`ComponentRunner`): the
+output histories it reads and writes are numpy views on shared memory, so a consumer in one
+process extrapolates from the very samples its source wrote in another, and the results are
+bit for bit those of the serial backend.  Per macro step the master sends one command to all
+workers and waits once (`WorkerPool`); with Gauss-Seidel links (a source that must finish
+the macro step before its consumer starts it) the step runs in dependency levels, one
+synchronisation per level.
+
+A worker that crashes, hangs past the step timeout or raises ends the run with a
+`SimulationError` naming the component, the simulation time and the cause; the driver then
+writes the rows of the completed macro steps.  Times are in seconds.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from functools import partial
+
+import numpy as np
+
+from master.backends.component import ComponentRunner, SimulationError, open_fmu, output_names
+from master.backends.shm import SharedArrays
+from master.backends.worker import WorkerFailure, WorkerPool
+from master.coupling import History
+from master.fmu import read_description, variables_of
+from master.schedule import Plan
+
+# worker commands (see _GroupTask.command)
+OP_SWEEP, OP_EXIT_INIT, OP_STEP, OP_SAVE, OP_SNAPSHOT, OP_RELAXED, OP_FREE, OP_RECORD = range(1, 9)
+
+DEFAULT_STEP_TIMEOUT = 10.0  # s: a macro step taking longer than this is a hang
+
+
+def worker_groups(plan: Plan) -> list[list[str]]:
+    """Component names per worker, in stepping order: one worker per scenario group or lone component."""
+    groups: dict[str, list[str]] = {}
+    for pc in plan.components:
+        g = plan.scenario.component(pc.name).group
+        groups.setdefault(f"group:{g}" if g else f"component:{pc.name}", []).append(pc.name)
+    return list(groups.values())
+
+
+def levels(plan: Plan) -> dict[str, int]:
+    """Dependency level of each component: 0, or one more than any source it must wait for."""
+    out: dict[str, int] = {}
+    for pc in plan.components:  # stepping order: sources that go first come first
+        out[pc.name] = max(
+            (out[lk.source] + 1 for lk in plan.links_into(pc.name) if lk.source_first), default=0
+        )
+    return out
+
+
+def history_capacity(plan: Plan, name: str, runner_capacity: int) -> int:
+    """Ring size for `name`'s outputs when producer and consumers run concurrently.
+
+    In a Jacobi macro step n the source writes samples n k+1 .. (n+1) k while a consumer of
+    order p reads n k-p .. n k: k + p + 1 samples must coexist.
+    """
+    pc = plan.component(name)
+    p_out = max((lk.order for lk in plan.links if lk.source == name), default=0)
+    return max(runner_capacity, pc.ratio + p_out + 2)
+
+
+def record_due(plan: Plan, n: int) -> bool:
+    """Whether the driver records a row after macro step n (its rule, repeated for the workers)."""
+    return (n + 1) % plan.record_every == 0 or n + 1 == plan.n_macro
+
+
+class _GroupTask:
+    """The components of one worker: built in the worker process by `WorkerPool`."""
+
+    def __init__(
+        self, plan: Plan, names: list[str], outs: dict[str, list[str]], data: SharedArrays, tmp: str
+    ):
+        self.plan = plan
+        self.components = names
+        self.outs = outs
+        self.data = data
+        self.tmp = tmp
+        self.runners: list[ComponentRunner] = []
+        self.histories: dict[str, History] = {}
+        self.level = levels(plan)
+        self.index = {pc.name: i for i, pc in enumerate(plan.components)}
+        self.saved: dict[str, object] = {}  # start-up: FMU states by component
+        self.previous: dict[str, History] = {}  # start-up: histories of the previous sweep
+
+    def setup(self, where: np.ndarray) -> None:
+        tempfile.tempdir = self.tmp  # extracted FMUs go where the master cleans up, even after a crash
+        sc = self.plan.scenario
+        for name in (pc.name for pc in self.plan.components):
+            h = self.data[f"hist:{name}"]
+            self.histories[name] = History(h.shape[1], h.shape[0], h)
+        for i, name in enumerate(self.components):
+            where[0] = i
+            fmu = open_fmu(sc, sc.component(name))
+            try:
+                r = ComponentRunner(self.plan, self.plan.component(name), fmu, self.outs)
+            except BaseException:
+                fmu.close()
+                raise
+            self.runners.append(r)
+            r.history = self.histories[name]
+
+    def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
+        """Run one command for the components of this worker, in stepping order.
+
+        OP_SWEEP a: initial sweep of component a (plan index).  OP_EXIT_INIT: leave
+        initialisation, record the start row.  OP_STEP a b: macro step a for the components of
+        level b, recording if due.  Start-up (as SerialBackend.step): OP_SAVE a saves FMU
+        states, OP_SNAPSHOT copies every history, OP_RELAXED a repeats macro step a from the
+        saved states on that copy, OP_FREE a frees the states, OP_RECORD a records.
+        """
+        steps, fmu_time, rec = self.data["steps"], self.data["fmu_time"], self.data["rec"]
+        if op == OP_SNAPSHOT:
+            self.previous = {name: h.copy() for name, h in self.histories.items()}
+            return
+        for i, r in enumerate(self.runners):
+            k = self.index[r.name]
+            if op == OP_SWEEP and k != a or op == OP_STEP and self.level[r.name] != b:
+                continue
+            where[0] = i
+            if op == OP_SWEEP:
+                r.initial_sweep(self.histories)
+            elif op == OP_EXIT_INIT:
+                self._exit_init(r)
+                r.record(-1, rec)
+            elif op == OP_STEP:
+                r.macro_step(a, self.histories)
+                if a >= self.plan.startup_steps and record_due(self.plan, a):
+                    r.record(a, rec)
+            elif op == OP_SAVE:
+                self.saved[r.name] = _state_call(r, a, r.fmu.get_state)
+            elif op == OP_RELAXED:
+                _state_call(r, a, r.fmu.set_state, self.saved[r.name])
+                r.macro_step(a, self.previous, relaxed=True)
+            elif op == OP_FREE:
+                _state_call(r, a, r.fmu.free_state, self.saved.pop(r.name))
+            elif op == OP_RECORD:
+                r.record(a, rec)
+            steps[k] = r.steps
+            fmu_time[k] = r.fmu_time
+
+    @staticmethod
+    def _exit_init(r: ComponentRunner) -> None:
+        """As the serial backend does after its sweeps."""
+        from master.fmu import FmuError
+
+        try:
+            r.fmu.exit_initialization()
+            r.out.get()
+        except FmuError as e:
+            t = r.clock.time(0)
+            raise SimulationError(f"{e} at t={t}", r.name, t) from e
+        r.history.push(0, r.out.values)
+
+    def close(self) -> None:
+        for r in self.runners:
+            r.fmu.close()
+
+
+class ParallelBackend:
+    """Executes a Plan with one worker process per component or group (see the module docstring).
+
+    Use like the serial backend: `open()`, `initialize()`, `step(n)` ..., `close()`.
+    start_method: "fork" (default; fastest start), "forkserver" or "spawn".
+    """
+
+    name = "parallel"
+
+    def __init__(self, plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT, start_method: str = "fork"):
+        self.plan = plan
+        self.step_timeout = step_timeout
+        self.start_method = start_method
+        self.groups = worker_groups(plan)
+        self.worker_of = {name: w for w, names in enumerate(self.groups) for name in names}
+        self.level = levels(plan)
+        self.n_levels = 1 + max(self.level.values(), default=0)
+        self.data: SharedArrays | None = None
+        self.pool: WorkerPool | None = None
+        self.tmp: str | None = None
+
+    def _layout(self) -> tuple[dict, dict[str, list[str]]]:
+        sc = self.plan.scenario
+        outs: dict[str, list[str]] = {}
+        layout: dict = {}
+        max_in = {
+            pc.name: max((lk.order for lk in self.plan.links_into(pc.name)), default=0)
+            for pc in self.plan.components
+        }
+        for pc in self.plan.components:
+            variables = variables_of(read_description(sc.component(pc.name).fmu_path))
+            outs[pc.name] = output_names(self.plan, pc.name, variables)
+        for pc in self.plan.components:
+            cap = history_capacity(self.plan, pc.name, pc.ratio + max_in[pc.name] + 2)
+            layout[f"hist:{pc.name}"] = ((cap, len(outs[pc.name])), "float64")
+        n = len(self.plan.components)
+        layout["rec"] = ((1 + len(self.plan.record),), "float64")
+        layout["steps"] = ((n,), "int64")
+        layout["fmu_time"] = ((n,), "float64")
+        return layout, outs
+
+    def open(self) -> None:
+        """Start the workers; each loads, instantiates and parameterises its FMUs."""
+        layout, outs = self._layout()
+        self.tmp = tempfile.mkdtemp(prefix="master-parallel-")
+        self.data = SharedArrays(layout)
+        tasks = [
+            (names, partial(_GroupTask, self.plan, names, outs, self.data, self.tmp)) for names in self.groups
+        ]
+        try:
+            self.pool = WorkerPool(tasks, start_method=self.start_method, step_timeout=self.step_timeout)
+        except WorkerFailure as e:
+            raise self._error(e, float(self.plan.scenario.start_time), "while starting") from None
+
+    def initialize(self) -> None:
+        """The serial backend's initialisation, component by component across the workers."""
+        assert self.pool is not None
+        t0 = float(self.plan.scenario.start_time)
+        try:
+            for _ in range(len(self.plan.components)):
+                for k, pc in enumerate(self.plan.components):
+                    self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
+            self.pool.run(OP_EXIT_INIT)
+        except WorkerFailure as e:
+            raise self._error(e, t0, "during initialisation") from None
+        except KeyboardInterrupt:
+            raise SimulationError("interrupted (SIGINT) during initialisation", "", t0) from None
+
+    def step(self, n: int) -> None:
+        """Advance every component through macro step n (one synchronisation per dependency level).
+
+        Start-up steps are repeated from saved FMU states exactly as SerialBackend.step does.
+        """
+        assert self.pool is not None
+        run = self.pool.run
+        try:
+            if n < self.plan.startup_steps:
+                run(OP_SAVE, n)
+            for lv in range(self.n_levels):
+                run(OP_STEP, n, lv)
+            if n < self.plan.startup_steps:
+                for _ in range(self.plan.startup_sweeps):
+                    run(OP_SNAPSHOT)
+                    run(OP_RELAXED, n)
+                run(OP_FREE, n)
+                if record_due(self.plan, n):
+                    run(OP_RECORD, n)
+        except WorkerFailure as e:
+            raise self._error(e, self.plan.macro_clock.time(n), self._span(n)) from None
+        except KeyboardInterrupt:
+            t = self.plan.macro_clock.time(n)
+            raise SimulationError(f"interrupted (SIGINT) {self._span(n)}", "", t) from None
+
+    def _span(self, n: int) -> str:
+        clock = self.plan.macro_clock
+        return f"in the macro step from t={clock.time(n)} to t={clock.time(n + 1)}"
+
+    def _error(self, e: WorkerFailure, t: float, when: str) -> SimulationError:
+        """A SimulationError from a worker failure; the worker's own message if it raised one."""
+        comp = e.component or "?"
+        if e.time is not None:  # the component code raised a SimulationError: keep its words
+            return SimulationError(e.cause, comp, e.time)
+        return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
+
+    def record(self, n: int, row: np.ndarray) -> None:
+        """Recorded values at the end of macro step n (n = -1: start time) into row[1:]."""
+        assert self.data is not None
+        row[1:] = self.data["rec"][1:]
+
+    def stats(self) -> tuple[dict[str, int], dict[str, float]]:
+        """(communication steps, wall time inside FMI calls in s) per component."""
+        names = [pc.name for pc in self.plan.components]
+        if self.data is None or not self.data.arrays:
+            return {n: 0 for n in names}, {n: 0.0 for n in names}
+        steps, ft = self.data["steps"], self.data["fmu_time"]
+        return {n: int(steps[i]) for i, n in enumerate(names)}, {n: float(ft[i]) for i, n in enumerate(names)}
+
+    def close(self) -> None:
+        """Stop the workers (killing any that do not stop), free shared memory and temporary files."""
+        try:
+            if self.pool is not None:
+                self.pool.close()
+        finally:
+            self.pool = None
+            if self.data is not None:
+                self.data.unlink()
+            if self.tmp is not None:
+                shutil.rmtree(self.tmp, ignore_errors=True)
+                self.tmp = None
+
+
+def _state_call(r: ComponentRunner, n: int, fn, *args):
+    """An FMU state call of the start-up, failures named as SerialBackend names them."""
+    from master.fmu import FmuError
+
+    try:
+        return fn(*args)
+    except FmuError as e:
+        t = r.clock.time(n * r.pc.ratio)
+        raise SimulationError(f"{e} at t={t}", r.name, t) from e
+
+
+def cpu_count() -> int:
+    """Processors this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
