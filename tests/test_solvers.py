@@ -17,6 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from master.fmubuild import fmu_path
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVERS = ROOT / "fmus" / "solvers"
@@ -24,6 +28,9 @@ SOLVERS = ROOT / "fmus" / "solvers"
 EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
 NAMES = {EULER: "euler", AB2: "ab2", AB3: "ab3", RK4: "rk4", SI_EULER: "si-euler", SI_MIDPOINT: "si-midpoint"}
 ORDERS = {EULER: 1, AB2: 2, AB3: 3, RK4: 4, SI_EULER: 1, SI_MIDPOINT: 2}
+# Real-axis stability limits z = lambda h of the explicit methods (RK4: root of |R(z)| = 1,
+# R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24).
+LIMITS = {EULER: -2.0, AB2: -1.0, AB3: -6.0 / 11.0, RK4: -2.785293563405282}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -149,3 +156,130 @@ def test_driver_order_of_convergence(driver: Path, kind: int) -> None:
         for h, s in zip(hs, steps, strict=True)
     ]
     assert observed_order(hs, errors) == pytest.approx(ORDERS[kind], abs=0.2)
+
+
+# ---------------------------------------------------------------------------------------------
+# Through the real FMUs (fmpy)
+
+
+class Slave:
+    """One project FMU, extracted once and instantiated afresh for every run."""
+
+    def __init__(self, name: str, tmp: Path) -> None:
+        path = fmu_path(name)
+        self.md = read_model_description(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.unzipdir = extract(str(path), unzipdir=str(tmp / name))
+
+    def run(
+        self,
+        solver: int,
+        internal_step: float,
+        comm_step: float,
+        n_comm: int,
+        reals: dict[str, float],
+        outputs: list[str],
+        stop_above: float = math.inf,
+    ) -> np.ndarray:
+        """Values of `outputs` (one row per doStep) after each of n_comm doSteps of comm_step (s).
+
+        Starts at t = 0.  internal_step (s): solver step inside a doStep, 0 for one step per
+        doStep.  reals: parameter values.  Stops early once an output exceeds stop_above.
+        """
+        # A fresh FMU2Slave per run: fmpy's freeInstance also unloads the library.
+        fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzipdir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=self.md.modelName,
+        )
+        fmu.instantiate()
+        try:
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+            fmu.setInteger([self.vr["solver"]], [solver])
+            fmu.setReal(
+                [self.vr["internal_step"], *(self.vr[k] for k in reals)], [internal_step, *reals.values()]
+            )
+            fmu.exitInitializationMode()
+            vrs = [self.vr[o] for o in outputs]
+            values = []
+            for k in range(n_comm):
+                fmu.doStep(currentCommunicationPoint=k * comm_step, communicationStepSize=comm_step)
+                values.append(fmu.getReal(vrs))
+                if np.max(np.abs(values[-1])) > stop_above:
+                    break
+            fmu.terminate()
+        finally:
+            fmu.freeInstance()
+        return np.array(values)
+
+
+@pytest.fixture(scope="module")
+def nonlinear(tmp_path_factory: pytest.TempPathFactory) -> Slave:
+    return Slave("nonlinear", tmp_path_factory.mktemp("fmus"))
+
+
+@pytest.fixture(scope="module")
+def dahlquist(tmp_path_factory: pytest.TempPathFactory) -> Slave:
+    return Slave("dahlquist", tmp_path_factory.mktemp("fmus"))
+
+
+def nonlinear_error(slave: Slave, kind: int, t_end: float, n: int, substeps: bool) -> float:
+    """Error norm of (x, y) of the nonlinear FMU at t_end (s) after n solver steps.
+
+    substeps: one doStep with internal_step = t_end / n, else n doSteps with one step each
+    (the multistep history then has to carry on from one doStep to the next).
+    """
+    h = t_end / n
+    if substeps:
+        final = slave.run(kind, h, t_end, 1, {}, ["x", "y"])[-1]
+    else:
+        final = slave.run(kind, 0.0, h, n, {}, ["x", "y"])[-1]
+    return float(np.linalg.norm(final - nonlinear_exact(t_end)))
+
+
+@pytest.mark.parametrize("substeps", [True, False], ids=["internal-steps", "communication-steps"])
+@pytest.mark.parametrize("kind", list(ORDERS), ids=[NAMES[k] for k in ORDERS])
+def test_order_of_convergence(nonlinear: Slave, kind: int, substeps: bool) -> None:
+    # t_end = 2 s, h = 0.1 ... 0.0125 s: asymptotic for every method, and the smallest RK4
+    # error (about 1e-9) stays far above rounding.
+    t_end, steps = 2.0, [20, 40, 80, 160]
+    hs = [t_end / n for n in steps]
+    errors = [nonlinear_error(nonlinear, kind, t_end, n, substeps) for n in steps]
+    order = observed_order(hs, errors)
+    assert order == pytest.approx(ORDERS[kind], abs=0.2), (order, errors)
+
+
+def grows(slave: Slave, kind: int, z: float) -> bool:
+    """Whether y' = (z / 1 s) y with h = 1 s grows over 2000 steps (|y| above its start 1)."""
+    y = slave.run(kind, 1.0, 100.0, 20, {"lambda": z, "y0": 1.0}, ["y"], stop_above=1e6)
+    return bool(abs(y[-1, 0]) > 1.0)
+
+
+def bisect_limit(slave: Slave, kind: int, stable: float, unstable: float, iterations: int = 18) -> float:
+    """Boundary z between a bounded (stable) and a growing (unstable) solution, by bisection."""
+    assert not grows(slave, kind, stable) and grows(slave, kind, unstable)
+    for _ in range(iterations):
+        mid = 0.5 * (stable + unstable)
+        if grows(slave, kind, mid):
+            unstable = mid
+        else:
+            stable = mid
+    return 0.5 * (stable + unstable)
+
+
+@pytest.mark.parametrize("kind", list(LIMITS), ids=[NAMES[k] for k in LIMITS])
+def test_real_axis_stability_limit(dahlquist: Slave, kind: int) -> None:
+    limit = LIMITS[kind]
+    found = bisect_limit(dahlquist, kind, 0.5 * limit, 1.5 * limit)
+    assert found == pytest.approx(limit, rel=0.02), found
+
+
+@pytest.mark.parametrize("kind", [SI_EULER, SI_MIDPOINT], ids=[NAMES[SI_EULER], NAMES[SI_MIDPOINT]])
+def test_semi_implicit_bounded_when_stiff(dahlquist: Slave, kind: int) -> None:
+    y = dahlquist.run(kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
+    assert len(y) == 20 and np.all(np.abs(y) <= 1.0)
+    if kind == SI_EULER:
+        # L-stable: R(z) = 1 / (1 - z), about 1e-6 per step.
+        assert abs(y[-1]) < 1e-300
