@@ -132,6 +132,7 @@ class RealPort:
         self.vrs = (ctypes.c_uint * max(n, 1))(*[fmu.variables[x].vr for x in self.names])
         self.values = np.zeros(n)
         self._ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        self.orders: dict[int, ctypes.Array] = {}  # derivative order -> prepared order vector
 
     def get(self) -> np.ndarray:
         """Read the variables into `values` (one call) and return it."""
@@ -329,9 +330,21 @@ class Fmu:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
     def set_input_derivatives(self, port: RealPort, order: int, values: np.ndarray) -> None:
-        """fmi2SetRealInputDerivatives: derivative `order` of the inputs of `port` (units/s^order)."""
+        """fmi2SetRealInputDerivatives: derivative `order` of the inputs of `port` (units/s^order).
+
+        `values` must be a float64 array of length port.n.
+        """
+        orders = port.orders.get(order)
+        if orders is None:
+            orders = port.orders[order] = (ctypes.c_int * max(port.n, 1))(*([order] * port.n))
         try:
-            self.slave.setRealInputDerivatives(list(port.vrs)[: port.n], [order] * port.n, list(values))
+            self.slave.fmi2SetRealInputDerivatives(
+                self.slave.component,
+                port.vrs,
+                port.n,
+                orders,
+                values.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+            )
         except FMICallException as e:
             raise FmuError(self.describe(str(e))) from e
 

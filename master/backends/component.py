@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from master.coupling import History, stimulus_value, weights
-from master.fmu import Fmu, FmuError
+from master.fmu import Fmu, FmuError, RealPort
 from master.scenario.model import Component, Scenario
 from master.schedule import Link, Plan, PlanComponent
 
@@ -60,6 +60,7 @@ class _InLink:
         self.slots = slots
         self.value = np.zeros(len(slots))
         self.source_step = step_s  # h of the source (s)
+        self.port: RealPort | None = None
 
 
 class ComponentRunner:
@@ -84,7 +85,9 @@ class ComponentRunner:
             cols = np.array([src_names.index(o) for o in lk.outputs], dtype=np.intp)
             slots = np.arange(pos, pos + len(lk.inputs), dtype=np.intp)
             pos += len(lk.inputs)
-            self.links.append(_InLink(lk, cols, slots, float(plan.component(lk.source).step)))
+            il = _InLink(lk, cols, slots, float(plan.component(lk.source).step))
+            il.port = fmu.real_port(list(lk.inputs))  # for fmi2SetRealInputDerivatives
+            self.links.append(il)
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
         # outputs that depend directly on driven inputs need those inputs at the end of each step
         self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
@@ -135,7 +138,7 @@ class ComponentRunner:
                 w = weights(p, j * lk.k_source - j_end * kc, kc, d)
                 histories[lk.source].combine(j_end, w, il.columns, il.value)
                 il.value /= il.source_step**d
-                self.fmu.set_input_derivatives(_SubPort(self.inp, il.slots), d, il.value)
+                self.fmu.set_input_derivatives(il.port, d, il.value)
 
     # -- stepping -------------------------------------------------------------------------------
     def initial_sweep(self, histories: dict[str, History]) -> None:
@@ -222,14 +225,6 @@ class ComponentRunner:
                 raise SimulationError(str(e), self.name, math.nan, var) from e
             finally:
                 self.fmu_time += perf() - t0
-
-
-class _SubPort:
-    """Some slots of a RealPort, for fmi2SetRealInputDerivatives."""
-
-    def __init__(self, port, slots: np.ndarray):
-        self.vrs = [port.vrs[int(i)] for i in slots]
-        self.n = len(self.vrs)
 
 
 def open_fmu(sc: Scenario, comp: Component) -> Fmu:

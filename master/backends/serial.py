@@ -41,9 +41,12 @@ class SerialBackend:
             self.histories[pc.name] = r.history
 
     def initialize(self) -> None:
-        """Make inputs and outputs at the start time consistent, then leave initialisation mode.
+        """Make inputs and outputs at the start time consistent.
 
-        One sweep per component settles any acyclic chain of direct feedthrough.
+        One sweep per component (set inputs from the sources' outputs, read own outputs)
+        settles any acyclic chain of direct feedthrough. Sweeps run in initialisation mode
+        (for FMUs that compute initial outputs there) and again after leaving it (for FMUs
+        that compute them only on exit).
         """
         for _ in range(len(self.runners)):
             for r in self.runners:
@@ -51,11 +54,12 @@ class SerialBackend:
         for r in self.runners:
             try:
                 r.fmu.exit_initialization()
-                r.out.get()
             except FmuError as e:
                 t = r.clock.time(0)
                 raise SimulationError(f"{e} at t={t}", r.name, t) from e
-            r.history.push(0, r.out.values)
+        for _ in range(len(self.runners)):
+            for r in self.runners:
+                r.initial_sweep(self.histories)
 
     def step(self, n: int) -> None:
         """Advance every component through macro step n (repeated at start-up, see Plan)."""
