@@ -20,7 +20,7 @@ from master.schedule import Capability, Plan, PlanError, build_plan
 
 log = logging.getLogger("master")
 
-BACKENDS = ("serial", "parallel")
+BACKENDS = ("serial", "parallel", "auto")
 
 
 class UsageError(Exception):
@@ -122,17 +122,23 @@ def plan(sc: Scenario) -> Plan:
     return build_plan(sc, variables, caps)
 
 
-def _make_backend(name: str, p: Plan):
+def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
     if name == "serial":
         from master.backends.serial import SerialBackend
 
         return SerialBackend(p)
     if name == "parallel":
-        try:
-            from master.backends.parallel import ParallelBackend  # type: ignore[import-not-found]
-        except ImportError as e:
-            raise UsageError("backend 'parallel' is not available yet; use --serial") from e
-        return ParallelBackend(p)
+        from master.backends.parallel import DEFAULT_STEP_TIMEOUT, ParallelBackend
+
+        return ParallelBackend(p, step_timeout=step_timeout or DEFAULT_STEP_TIMEOUT)
+    if name == "auto":
+        from master.backends.parallel import choose_backend
+
+        chosen, why = choose_backend(p)
+        log.info("backend %s chosen automatically: %s", chosen, why)
+        be = _make_backend(chosen, p, step_timeout)
+        be.name = f"{chosen} (auto: {why})"
+        return be
     raise UsageError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 
@@ -148,11 +154,14 @@ def run(
     real_time: float | None = None,
     progress: bool = False,
     plot: str | Path | None = None,
+    step_timeout: float | None = None,
 ) -> RunResult:
     """Run a scenario (file or `Scenario`) and return its results.
 
     stop_time, output_interval in s; `record` and `set_values` use "component.variable" names;
-    `real_time` paces the run (1.0: wall clock speed). On failure a SimulationError is raised
+    `real_time` paces the run (1.0: wall clock speed). backend: "serial", "parallel" (a worker
+    process per component or group; `step_timeout` s per macro step, default 10) or "auto"
+    (parallel when a timed serial trial says it pays). On failure a SimulationError is raised
     after the rows computed so far are written; it carries `.result` (a RunResult).
     """
     if isinstance(scenario, Scenario):
@@ -165,7 +174,7 @@ def run(
     p = plan(sc)
     for note in p.notes:
         log.info(note)
-    be = _make_backend(backend, p)
+    be = _make_backend(backend, p, step_timeout)
     columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
     recorder = Recorder(columns, Path(output) if output is not None else None)
     try:

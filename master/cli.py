@@ -51,7 +51,18 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--parallel", dest="backend", action="store_const", const="parallel", help="parallel backend"
     )
-    g.add_argument("--backend", dest="backend", choices=api.BACKENDS, help="backend by name")
+    g.add_argument(
+        "--backend",
+        dest="backend",
+        choices=api.BACKENDS,
+        help="backend by name (default: auto, chosen by timing)",
+    )
+    r.add_argument(
+        "--step-timeout",
+        type=float,
+        metavar="S",
+        help="parallel: a macro step longer than this is a hang (s)",
+    )
     r.add_argument("--plot", metavar="PNG", help="plot the recorded variables into this file")
     r.add_argument(
         "--real-time",
@@ -124,7 +135,8 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
                 record=args.record,
                 set_values=args.set,
                 output_interval=args.output_interval,
-                backend=args.backend or "serial",
+                backend=args.backend or "auto",
+                step_timeout=args.step_timeout,
                 real_time=args.real_time,
                 progress=progress,
                 plot=args.plot,

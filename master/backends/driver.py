@@ -126,6 +126,12 @@ def execute(
         summary.stop_reason = f"failed: {e}"
         e.summary = summary  # type: ignore[attr-defined]
         raise
+    except KeyboardInterrupt:  # Ctrl-C: keep the rows so far, like any other stop
+        t = plan.macro_clock.time(n)
+        err = SimulationError(f"interrupted (SIGINT) at t={t}", "", t)
+        summary.stop_reason = f"failed: {err}"
+        err.summary = summary  # type: ignore[attr-defined]
+        raise err from None
     finally:
         summary.wall_time = time.perf_counter() - wall0
         summary.macro_steps = n

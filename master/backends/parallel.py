@@ -18,19 +18,20 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import time
 from functools import partial
 
 import numpy as np
 
 from master.backends.component import ComponentRunner, SimulationError, open_fmu, output_names
 from master.backends.shm import SharedArrays
-from master.backends.worker import WorkerFailure, WorkerPool
+from master.backends.worker import NOP, WorkerFailure, WorkerPool
 from master.coupling import History
 from master.fmu import read_description, variables_of
 from master.schedule import Plan
 
-# worker commands (see _GroupTask.command)
-OP_SWEEP, OP_EXIT_INIT, OP_STEP, OP_SAVE, OP_SNAPSHOT, OP_RELAXED, OP_FREE, OP_RECORD = range(1, 9)
+# worker commands (see _GroupTask.command and _TrialTask.command)
+OP_SWEEP, OP_EXIT_INIT, OP_STEP, OP_SAVE, OP_SNAPSHOT, OP_RELAXED, OP_FREE, OP_RECORD, OP_TRIAL = range(1, 10)
 
 DEFAULT_STEP_TIMEOUT = 10.0  # s: a macro step taking longer than this is a hang
 
@@ -310,3 +311,135 @@ def cpu_count() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:
         return os.cpu_count() or 1
+
+
+# -- automatic choice -------------------------------------------------------------------------
+
+TRIAL_STEPS = 50  # macro steps timed at most in the serial trial
+TRIAL_BUDGET = 0.1  # s: wall time the trial may spend stepping
+SYNC_ROUNDS = 200  # empty round trips timed to measure the synchronisation cost
+MARGIN = 1.2  # parallel must be predicted this much faster per step to be chosen
+
+
+class _TrialTask:
+    """Times the serial backend on the first macro steps, in a worker so that a crash stays there."""
+
+    def __init__(self, plan: Plan, out: SharedArrays, tmp: str):
+        self.plan = plan
+        self.out = out
+        self.tmp = tmp
+        self.components = [pc.name for pc in plan.components]
+
+    def setup(self, where: np.ndarray) -> None:
+        tempfile.tempdir = self.tmp
+
+    def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
+        """OP_TRIAL: out = [open time, steps timed, wall of those steps, FMU time per component...]."""
+        from master.backends.serial import SerialBackend
+
+        res = self.out["trial"]
+        be = SerialBackend(self.plan)
+        try:
+            t0 = time.perf_counter()
+            be.open()
+            be.initialize()
+            res[0] = time.perf_counter() - t0
+            n0 = self.plan.startup_steps  # start-up steps repeat work: not typical
+            for n in range(min(n0, self.plan.n_macro)):
+                be.step(n)
+            ft0 = be.stats()[1]
+            t0 = time.perf_counter()
+            n = n0
+            while n < min(n0 + TRIAL_STEPS, self.plan.n_macro) and time.perf_counter() - t0 < TRIAL_BUDGET:
+                be.step(n)
+                n += 1
+            res[2] = time.perf_counter() - t0
+            res[1] = n - n0
+            ft = be.stats()[1]
+            for i, name in enumerate(self.components):
+                res[3 + i] = ft[name] - ft0[name]
+        finally:
+            be.close()
+
+    def close(self) -> None:
+        pass
+
+
+def predict_parallel(plan: Plan, cost: dict[str, float], sync: float, cpus: int) -> float:
+    """Predicted wall time per macro step (s) of the parallel backend.
+
+    cost: serial wall time per macro step attributable to each component (s).  Per dependency
+    level the slowest worker sets the pace, unless the workers outnumber the processors.
+    """
+    lv = levels(plan)
+    total = 0.0
+    for level in range(1 + max(lv.values(), default=0)):
+        loads = [sum(cost[n] for n in names if lv[n] == level) for names in worker_groups(plan)]
+        total += max(max(loads), sum(loads) / cpus) + sync
+    return total
+
+
+def choose_backend(plan: Plan) -> tuple[str, str]:
+    """("serial" or "parallel", why): measured serial cost per macro step vs predicted parallel cost."""
+    groups = worker_groups(plan)
+    cpus = cpu_count()
+    if len(groups) < 2:
+        return "serial", "one worker would run everything: nothing to overlap"
+    if cpus < 2:
+        return "serial", "one processor"
+    n = len(plan.components)
+    out = SharedArrays({"trial": ((3 + n,), "float64")})
+    tmp = tempfile.mkdtemp(prefix="master-trial-")
+    idle = _IdleTask
+    try:
+        t0 = time.perf_counter()
+        pool = WorkerPool(
+            [(["trial"], partial(_TrialTask, plan, out, tmp))] + [(["idle"], idle)] * (len(groups) - 1)
+        )
+        start = time.perf_counter() - t0
+        try:
+            try:
+                pool.run(OP_TRIAL, workers=[0])
+            except WorkerFailure as e:
+                return "parallel", f"the serial trial failed ({e.cause}): workers keep a failure isolated"
+            t0 = time.perf_counter()
+            for _ in range(SYNC_ROUNDS):
+                pool.run(NOP)
+            sync = (time.perf_counter() - t0) / SYNC_ROUNDS
+        finally:
+            pool.close()
+        res = out["trial"].copy()
+    finally:
+        out.unlink()
+        shutil.rmtree(tmp, ignore_errors=True)
+    opened, steps, wall = res[0], int(res[1]), res[2]
+    if steps == 0:
+        return "serial", "no macro step to time"
+    serial = wall / steps
+    fmu = {pc.name: res[3 + i] / steps for i, pc in enumerate(plan.components)}
+    glue = max(serial - sum(fmu.values()), 0.0) / n  # master work per component and step
+    parallel = predict_parallel(plan, {k: v + glue for k, v in fmu.items()}, sync, cpus)
+    remaining = plan.n_macro - plan.startup_steps
+    gain = remaining * (serial - parallel) - start - opened / 2
+    facts = (
+        f"serial {serial * 1e6:.0f} us/step measured, parallel {parallel * 1e6:.0f} us/step predicted "
+        f"(sync {sync * 1e6:.0f} us, {len(groups)} workers on {cpus} CPUs)"
+    )
+    if parallel * MARGIN < serial and gain > 0:
+        return "parallel", facts
+    return "serial", facts
+
+
+class _IdleTask:
+    """A worker that only answers (for timing the synchronisation)."""
+
+    components = ("idle",)
+
+    def setup(self, where: np.ndarray) -> None:
+        pass
+
+    def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
