@@ -24,6 +24,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -452,6 +453,7 @@ def build_fmu(name: str) -> Path:
     """
     model_dir = _model_dir(name)
     xml_path = model_dir / "modelDescription.xml"
+    started = time.time()
     desc = describe(name)
     expected = model_description_xml(name, desc)
     if not xml_path.is_file() or xml_path.read_text(encoding="utf-8") != expected:
@@ -479,6 +481,9 @@ def build_fmu(name: str) -> Path:
             for path in sorted(stage.rglob("*")):
                 if path.is_file():
                     zf.write(path, path.relative_to(stage).as_posix())
+        # Date the FMU from the start of the build: a source edited while compiling
+        # is then newer than the FMU, and fmu_path builds again.
+        os.utime(archive, (started, started))
         target = BUILD_DIR / f"{name}.fmu"
         os.replace(archive, target)
     return target

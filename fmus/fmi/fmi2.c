@@ -588,7 +588,6 @@ fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], s
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
     GUARD("fmi2GetContinuousStates", S_INIT | S_EVENT | S_CONT | S_TERM);
     if (!check_nx(inst, "fmi2GetContinuousStates", nx)) return fmi2Error;
-    if (inst->core->state == ST_INITIALIZATION && refresh(inst, 0, "fmi2GetContinuousStates")) return fmi2Error;
     gather_states(inst, x);
     return fmi2OK;
 }

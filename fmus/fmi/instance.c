@@ -48,15 +48,20 @@ Instance *instance_new(const char *name, fmi2Type type, fmi2CallbackLogger logge
     inst->name = malloc(strlen(name) + 1);
     inst->real_input_vr = calloc((size_t)nv + 1, sizeof(int));
     inst->input_index = calloc((size_t)nv + 1, sizeof(int));
-    if (!inst->name || !inst->real_input_vr || !inst->input_index) goto fail;
+    inst->checked_vr = calloc((size_t)nv + 1, sizeof(int));
+    if (!inst->name || !inst->real_input_vr || !inst->input_index || !inst->checked_vr) goto fail;
     strcpy(inst->name, name);
     for (int vr = 0; vr < nv; vr++) {
         const Variable *v = &m->variables[vr];
+        int is_state = 0;
         inst->input_index[vr] = -1;
-        if (v->type == T_REAL && v->causality == C_INPUT) {
+        if (v->type != T_REAL) continue;
+        if (v->causality == C_INPUT) {
             inst->input_index[vr] = inst->n_real_inputs;
             inst->real_input_vr[inst->n_real_inputs++] = vr;
         }
+        for (int i = 0; i < n; i++) is_state |= m->state_slots[i] == v->slot;
+        if (is_state || v->causality == C_OUTPUT) inst->checked_vr[inst->n_checked++] = vr;
     }
     inst->block_size = layout(inst, NULL);
     inst->block = calloc(1, inst->block_size);
@@ -85,6 +90,7 @@ void instance_free(Instance *inst) {
     free(inst->name);
     free(inst->real_input_vr);
     free(inst->input_index);
+    free(inst->checked_vr);
     free(inst->dx);
     free(inst->jac);
     free(inst->saved_reals);
@@ -178,13 +184,6 @@ void mark_dirty(Instance *inst) {
 int refresh(Instance *inst, int derivatives, const char *function) {
     const ModelDef *m = inst->model;
     Core *c = inst->core;
-    if (c->state == ST_INITIALIZATION && (c->outputs_dirty || (derivatives && c->derivatives_dirty))) {
-        /* Initial unknowns are computed from what has been set so far. */
-        if (m->initialize && m->initialize(inst) != MODEL_OK) {
-            layer_log(inst, LOG_ERROR, "%s: model initialization failed", function);
-            return 1;
-        }
-    }
     if (c->outputs_dirty) {
         gather_states(inst, inst->x);
         if (m->outputs && m->outputs(inst, c->time, inst->x) != MODEL_OK) {
@@ -207,15 +206,12 @@ int refresh(Instance *inst, int derivatives, const char *function) {
 }
 
 int check_finite(Instance *inst, const char *function) {
-    const ModelDef *m = inst->model;
-    for (int vr = 0; vr < m->n_variables; vr++) {
-        const Variable *v = &m->variables[vr];
-        int is_state = 0;
-        if (v->type != T_REAL) continue;
-        for (int i = 0; i < m->n_states; i++) is_state |= m->state_slots[i] == v->slot;
-        if ((is_state || v->causality == C_OUTPUT) && !isfinite(inst->reals[v->slot])) {
-            layer_log(inst, LOG_ERROR, "%s: %s %s = %g at t = %.17g", function, is_state ? "state" : "output",
-                      v->name, inst->reals[v->slot], inst->core->time);
+    for (int k = 0; k < inst->n_checked; k++) {
+        const Variable *v = &inst->model->variables[inst->checked_vr[k]];
+        if (!isfinite(inst->reals[v->slot])) {
+            layer_log(inst, LOG_ERROR, "%s: %s %s = %g at t = %.17g", function,
+                      v->causality == C_OUTPUT ? "output" : "state", v->name, inst->reals[v->slot],
+                      inst->core->time);
             return 1;
         }
     }

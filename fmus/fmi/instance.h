@@ -71,6 +71,8 @@ struct Instance {
     int n_real_inputs;
     int *real_input_vr;      /* value reference of each Real input */
     int *input_index;        /* per value reference: index into the Real inputs or -1 */
+    int n_checked;
+    int *checked_vr;         /* Real states and outputs, checked for finiteness after each step */
 
     /* scratch, not state */
     SolverWork *work;
@@ -106,7 +108,8 @@ void gather_states(Instance *inst, double *x);       /* state slots -> x */
 void scatter_states(Instance *inst, const double *x); /* x -> state slots */
 void mark_dirty(Instance *inst);
 /* Bring outputs (and derivative slots when `derivatives`) up to date; 0 on success.
- * In Initialization Mode this runs MODEL.initialize first. */
+ * MODEL.initialize runs only at fmi2ExitInitializationMode, so in Initialization
+ * Mode the values come from the slots as set so far. */
 int refresh(Instance *inst, int derivatives, const char *function);
 /* 0 if every state and Real output is finite, else logs the first bad one and returns 1. */
 int check_finite(Instance *inst, const char *function);
