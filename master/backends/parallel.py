@@ -226,6 +226,10 @@ class ParallelBackend:
                 for k, pc in enumerate(self.plan.components):
                     self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
             self.pool.run(OP_EXIT_INIT)
+            for _ in range(len(self.plan.components)):  # as SerialBackend: sweeps after leaving init too
+                for k, pc in enumerate(self.plan.components):
+                    self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
+            self.pool.run(OP_RECORD, -1)
         except WorkerFailure as e:
             raise self._error(e, t0, "during initialisation") from None
         except KeyboardInterrupt:
