@@ -30,6 +30,7 @@ class Context:
     comps: dict[str, Comp] = field(default_factory=dict)
     # input (component, variable) -> the connection element driving it
     driven: dict[tuple[str, str], etree._Element] = field(default_factory=dict)
+    built: dict = field(default_factory=dict)  # project FMU name -> path or SourceError, this read
 
     def at(self, elem: etree._Element, message: str) -> None:
         """A problem at an element of the .ssd."""

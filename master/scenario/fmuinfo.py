@@ -67,16 +67,18 @@ class SourceError(Exception):
     """A component source that does not lead to an FMU."""
 
 
-def resolve_source(source: str, base: Path, inside: Path | None = None) -> Path:
+def resolve_source(source: str, base: Path, inside: Path | None = None, built: dict | None = None) -> Path:
     """The .fmu file a component's source attribute names.
 
     1. "project:NAME": the project's FMU NAME (fmus/NAME), built if missing or stale.
     2. otherwise a path relative to the folder of the .ssd (`base`); used if that file exists.
     3. otherwise the NAME of a project FMU (a folder fmus/NAME with a model.c): as in 1.
     `inside`: for unpacked archives, the folder a relative path may not leave.
+    `built`: project FMUs already resolved while reading this scenario (name -> path or error),
+    so that a scene with many instances of one model checks its build once.
     """
     if source.startswith(PROJECT_SCHEME):
-        return _project(source[len(PROJECT_SCHEME) :])
+        return _project(source[len(PROJECT_SCHEME) :], built)
     if "://" in source or source.startswith("file:"):
         raise SourceError(f'unsupported URI "{source}": use a relative path or project:NAME')
     candidate = (base / source).resolve()
@@ -85,21 +87,29 @@ def resolve_source(source: str, base: Path, inside: Path | None = None) -> Path:
     if candidate.is_file():
         return candidate
     if source in project_fmu_names():
-        return _project(source)
+        return _project(source, built)
     raise SourceError(f'FMU file "{source}" not found (looked for {candidate})')
 
 
-def _project(name: str) -> Path:
+def _project(name: str, built: dict | None) -> Path:
+    built = {} if built is None else built
+    if name not in built:
+        built[name] = _build(name)
+    if isinstance(built[name], SourceError):
+        raise built[name]
+    return built[name]
+
+
+def _build(name: str) -> Path | SourceError:
     from master import fmubuild
 
     names = fmubuild.project_fmu_names()
     if name not in names:
-        raise SourceError(f'no project FMU "{name}" (the project has: {", ".join(names)})')
-
+        return SourceError(f'no project FMU "{name}" (the project has: {", ".join(names)})')
     try:
         return Path(fmubuild.fmu_path(name))
     except Exception as err:  # a failed C build: report it as a problem of this component
-        raise SourceError(f'cannot build project FMU "{name}": {err}') from err
+        return SourceError(f'cannot build project FMU "{name}": {err}')
 
 
 def read(path: Path) -> FmuInfo:

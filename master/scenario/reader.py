@@ -89,12 +89,12 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     ctx = Context(problems, shown, ssd.parent, inside)
 
     _components(ctx, system)
-    connections = _connections(ctx, system)
+    connections, links = _connections(ctx, system)
     times = _experiment(ctx, root)
     setup = settings.read(ctx, root, system, connections, times)
     params = bindings.read(ctx, system, overrides)
     _undriven(ctx, setup, params)
-    loops.check(ctx, connections)
+    loops.check(ctx, links)
     if problems.items or setup is None or times is None:
         return None
 
@@ -165,7 +165,7 @@ def _fmu(ctx: Context, elem: etree._Element) -> fmuinfo.FmuInfo | None:
     if source is None:
         return None
     try:
-        info = fmuinfo.read(fmuinfo.resolve_source(source, ctx.base, ctx.inside))
+        info = fmuinfo.read(fmuinfo.resolve_source(source, ctx.base, ctx.inside, ctx.built))
     except SourceError as err:
         ctx.at(elem, str(err))
         return None
@@ -202,11 +202,14 @@ def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
             ctx.at(conn, f'unit mismatch: connector in "{unit}", {comp.name}.{name} in "{var.unit}"')
 
 
-def _connections(
-    ctx: Context, system: etree._Element
-) -> list[tuple[tuple[str, str, str, str], etree._Element]]:
-    """Checked connections: ((start comp, output, end comp, input), element)."""
-    good = []
+Link = tuple[tuple[str, str, str, str], etree._Element]  # ((start comp, output, end comp, input), element)
+
+
+def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list[Link]]:
+    """(connections without problems, every output -> input link even with a type or unit problem:
+    the algebraic loop check needs the latter)."""
+    good: list[Link] = []
+    links: list[Link] = []
     for elem in system.findall(f"{tag(NS_SSD, 'Connections')}/{tag(NS_SSD, 'Connection')}"):
         se, sc, ee, ec = (
             elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
@@ -223,21 +226,26 @@ def _connections(
                 )
         out = _end(ctx, elem, se, sc)
         inp = _end(ctx, elem, ee, ec)
-        ok = out is not None and inp is not None
-        if out is not None and out.causality != "output":
-            ctx.at(
-                elem, f"start {se}.{sc} is {_a(out.causality)}, not an output: connections go output -> input"
-            )
-            ok = False
-        if inp is not None and inp.causality != "input":
-            ctx.at(
-                elem, f"end {ee}.{ec} is {_a(inp.causality)}, not an input: connections go output -> input"
-            )
-            ok = False
-        if out is not None and inp is not None and out.kind != inp.kind:
+        if out is None or inp is None:
+            continue
+        if out.causality != "output" or inp.causality != "input":
+            if out.causality != "output":
+                ctx.at(
+                    elem,
+                    f"start {se}.{sc} is {_a(out.causality)}, not an output: connections go output -> input",
+                )
+            if inp.causality != "input":
+                ctx.at(
+                    elem,
+                    f"end {ee}.{ec} is {_a(inp.causality)}, not an input: connections go output -> input",
+                )
+            continue
+        links.append(((se, sc, ee, ec), elem))
+        ok = True
+        if out.kind != inp.kind:
             ctx.at(elem, f"type mismatch: {se}.{sc} is {out.type}, {ee}.{ec} is {inp.type}")
             ok = False
-        if out is not None and inp is not None and out.unit and inp.unit and out.unit != inp.unit:
+        elif out.unit and inp.unit and out.unit != inp.unit:
             ctx.at(
                 elem,
                 f'unit mismatch: {se}.{sc} is in "{out.unit}", {ee}.{ec} in "{inp.unit}"'
@@ -245,13 +253,13 @@ def _connections(
             )
             ok = False
         first = ctx.driven.get((ee, ec))
-        if first is not None and inp is not None and inp.causality == "input":
+        if first is not None:
             ctx.at(elem, f"{ee}.{ec} is already driven by the connection on line {first.sourceline}")
             continue
+        ctx.driven[(ee, ec)] = elem
         if ok:
-            ctx.driven[(ee, ec)] = elem
             good.append(((se, sc, ee, ec), elem))
-    return good
+    return good, links
 
 
 def _a(causality: str) -> str:
@@ -269,8 +277,9 @@ def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuin
         hint = f"; declare it in the ssd:Connectors of {comp}" if known else ""
         ctx.at(elem, f'component {comp} has no connector "{connector}"{hint}')
         return None
-    var = ctx.variable(comp, connector, elem)
-    return var
+    if c.info is None:
+        return None
+    return c.info.variables.get(connector)  # None: reported at the ssd:Connector already
 
 
 def parse_time(text: str) -> Fraction:

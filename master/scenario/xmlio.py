@@ -79,21 +79,28 @@ def check_schema(tree: etree._ElementTree, schema: etree.XMLSchema, shown: str, 
                 message = f"attribute {match.group(2)}: {message}"
             named = _name_at(tree, entry.path)
             if named:
-                element = f'{element} "{named}"'
+                element = f"{element} {named}"
         problems.add(shown, entry.line, element, f"schema violation: {message.strip()}")
     return False
 
 
 def _name_at(tree: etree._ElementTree, path: str | None) -> str | None:
-    """The name attribute of the element at a libxml2 error path, if it has one."""
+    """What names the element at a libxml2 error path: its name attribute, else that of the
+    nearest named ancestor (`in ssv:Parameter "m"`)."""
     if not path:
         return None
     try:
         found = tree.xpath(path, namespaces=_nsmap(tree.getroot()))
     except etree.XPathError:
         return None
-    if found and isinstance(found[0], etree._Element):
-        return found[0].get("name")
+    if not found or not isinstance(found[0], etree._Element):
+        return None
+    elem = found[0]
+    if elem.get("name") is not None:
+        return f'"{elem.get("name")}"'
+    for up in elem.iterancestors():
+        if up.get("name") is not None:
+            return f'in {qualified(up.tag)} "{up.get("name")}"'
     return None
 
 
