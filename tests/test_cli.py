@@ -67,6 +67,20 @@ def test_run_writes_csv_and_plot(decay, tmp_path):
     assert data["time"][-1] == 0.5 and len(data) == 51
     assert data["d.y"][-1] == pytest.approx(np.exp(-1.0), rel=1e-6)  # RK4 at h = 0.01
     assert png.stat().st_size > 1000
+    r = master(
+        "run",
+        str(decay),
+        "-o",
+        str(tmp_path / "par.csv"),
+        "--set",
+        "d.lambda=-2",
+        "--stop-time",
+        "0.5",
+        "--parallel",
+        "-q",
+    )
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "par.csv").read_text() == out.read_text()  # same numbers from both backends
     r = master("plot", str(out), "-o", str(tmp_path / "again.png"))
     assert r.returncode == 0 and (tmp_path / "again.png").exists()
 
@@ -83,7 +97,7 @@ def test_validate_info(decay):
     "args, message",
     [
         (["run", "missing.ssd"], "missing.ssd: no such scenario file"),
-        (["run", "{decay}", "--parallel"], "parallel"),
+        (["run", "{decay}", "--backend", "threads"], "invalid choice"),
         (["run", "{decay}", "--set", "d.nope=1"], "nope"),
         (["run", "{decay}", "--stop-time", "0.015"], "not a whole number of macro steps"),
         (["run", "{decay}", "--record", "x.y"], "--record x.y"),
