@@ -85,8 +85,8 @@ def check_schema(tree: etree._ElementTree, schema: etree.XMLSchema, shown: str, 
 
 
 def _name_at(tree: etree._ElementTree, path: str | None) -> str | None:
-    """What names the element at a libxml2 error path: its name attribute, else that of the
-    nearest named ancestor (`in ssv:Parameter "m"`)."""
+    """What names the element at a libxml2 error path: its name attribute, else that of its
+    parent (`in ssv:Parameter "m"`)."""
     if not path:
         return None
     try:
@@ -98,9 +98,9 @@ def _name_at(tree: etree._ElementTree, path: str | None) -> str | None:
     elem = found[0]
     if elem.get("name") is not None:
         return f'"{elem.get("name")}"'
-    for up in elem.iterancestors():
-        if up.get("name") is not None:
-            return f'in {qualified(up.tag)} "{up.get("name")}"'
+    up = elem.getparent()
+    if up is not None and up.get("name") is not None:
+        return f'in {qualified(up.tag)} "{up.get("name")}"'
     return None
 
 
