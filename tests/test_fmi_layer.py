@@ -378,8 +378,11 @@ def test_guid_mismatch_and_model_initialization_errors(fmus: dict[str, Fmu]) -> 
     inst.slave.enterInitializationMode()
     with pytest.raises(FMICallException):
         inst.slave.exitInitializationMode()
-    assert "mass m = 0 must be > 0" in inst.errors()
-    assert "model initialization failed" in inst.errors()
+    # the last message names the model's own reason too (masters often show only that one)
+    assert (
+        inst.messages[-1][2]
+        == "fmi2ExitInitializationMode: model initialization failed: msd: mass m = 0 must be > 0"
+    )
     # an instance in the Error state recovers with fmi2Reset
     inst.slave.reset()
     inst.init(m=1.0, x0=1.0)

@@ -70,7 +70,8 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
         int n = m->n_states;
         gather_states(inst, inst->x);
         if (m->jacobian(inst, inst->core->time, inst->x, inst->jac) != MODEL_OK) {
-            layer_log(inst, LOG_ERROR, "%s: model Jacobian failed at t = %.17g", fn, inst->core->time);
+            layer_log(inst, LOG_ERROR, "%s: model Jacobian failed at t = %.17g%s", fn, inst->core->time,
+                      model_error_suffix(inst));
             return fmi2Error;
         }
         for (size_t i = 0; i < n_unknown; i++) {
@@ -99,8 +100,8 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
     rc |= evaluate(inst, unknown, n_unknown, known, n_known, seed, -eps, inst->fd_minus);
     memcpy(inst->reals, inst->saved_reals, sizeof(double) * (size_t)m->n_reals);
     if (rc) {
-        layer_log(inst, LOG_ERROR, "%s: model equations failed while differentiating at t = %.17g", fn,
-                  inst->core->time);
+        layer_log(inst, LOG_ERROR, "%s: model equations failed while differentiating at t = %.17g%s", fn,
+                  inst->core->time, model_error_suffix(inst));
         return fmi2Error;
     }
     for (size_t i = 0; i < n_unknown; i++) result[i] = (inst->fd_plus[i] - inst->fd_minus[i]) / (2.0 * eps);

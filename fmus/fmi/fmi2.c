@@ -117,7 +117,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     GUARD("fmi2ExitInitializationMode", S_INIT);
     const ModelDef *m = inst->model;
     if (m->initialize && m->initialize(inst) != MODEL_OK) {
-        layer_log(inst, LOG_ERROR, "fmi2ExitInitializationMode: model initialization failed");
+        layer_log(inst, LOG_ERROR, "fmi2ExitInitializationMode: model initialization failed%s",
+                  model_error_suffix(inst));
         inst->core->state = ST_ERROR;
         return fmi2Error;
     }

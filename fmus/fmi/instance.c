@@ -187,7 +187,8 @@ int refresh(Instance *inst, int derivatives, const char *function) {
     if (c->outputs_dirty) {
         gather_states(inst, inst->x);
         if (m->outputs && m->outputs(inst, c->time, inst->x) != MODEL_OK) {
-            layer_log(inst, LOG_ERROR, "%s: model outputs failed at t = %.17g", function, c->time);
+            layer_log(inst, LOG_ERROR, "%s: model outputs failed at t = %.17g%s", function, c->time,
+                      model_error_suffix(inst));
             return 1;
         }
         c->outputs_dirty = 0;
@@ -196,7 +197,8 @@ int refresh(Instance *inst, int derivatives, const char *function) {
         gather_states(inst, inst->x);
         c->n_rhs++;
         if (m->derivatives(inst, c->time, inst->x, inst->dx) != MODEL_OK) {
-            layer_log(inst, LOG_ERROR, "%s: model derivatives failed at t = %.17g", function, c->time);
+            layer_log(inst, LOG_ERROR, "%s: model derivatives failed at t = %.17g%s", function, c->time,
+                      model_error_suffix(inst));
             return 1;
         }
         for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];

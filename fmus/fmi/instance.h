@@ -53,6 +53,8 @@ struct Instance {
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment env;
     unsigned log_mask;       /* bit per category, see log.c */
+    char model_error[512];   /* the model's last logError message, repeated in the layer's failure report */
+    char error_suffix[512];  /* returned by model_error_suffix */
 
     /* persistent block and views into it */
     unsigned char *block;
@@ -91,6 +93,8 @@ void layer_log(Instance *inst, int category, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
+/* ": <model's last error>" (or "") for appending to a failure report; clears it. */
+const char *model_error_suffix(Instance *inst);
 const char *state_name(int state);
 /* 1 if the instance may make this call in its current state, else logs and returns 0. */
 int check_state(Instance *inst, const char *function, unsigned allowed_mask);

@@ -41,6 +41,18 @@ void model_log(Instance *inst, const char *category, const char *fmt, ...) {
     va_start(ap, fmt);
     vlog(inst, c, fmt, ap);
     va_end(ap);
+    if (c == LOG_ERROR && inst) { /* kept so that the layer's report names the cause too */
+        va_start(ap, fmt);
+        inst->model_error[0] = ':', inst->model_error[1] = ' ';
+        vsnprintf(inst->model_error + 2, sizeof inst->model_error - 2, fmt, ap);
+        va_end(ap);
+    }
+}
+
+const char *model_error_suffix(Instance *inst) {
+    memcpy(inst->error_suffix, inst->model_error, sizeof inst->error_suffix);
+    inst->model_error[0] = '\0';
+    return inst->error_suffix;
 }
 
 const char *state_name(int state) {

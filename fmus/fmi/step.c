@@ -95,8 +95,8 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     c->have_input_derivatives = 0;
 
     if (rc != 0) {
-        layer_log(inst, LOG_ERROR, "fmi2DoStep: %s in the step from t = %.17g s (h = %g s)",
-                  rc == 2 ? "singular linear system" : "model equations failed", t, h);
+        layer_log(inst, LOG_ERROR, "fmi2DoStep: %s in the step from t = %.17g s (h = %g s)%s",
+                  rc == 2 ? "singular linear system" : "model equations failed", t, h, model_error_suffix(inst));
         c->state = ST_ERROR;
         return fmi2Error;
     }
