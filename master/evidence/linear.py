@@ -2,11 +2,12 @@
 
 Each component is linear, x' = A x + B u, y = C x + D u, integrated by one of the shared
 core's fixed-step solvers (fmus/solvers, same formulas and same history handling: the
-multistep history carries on across communication steps).  Coupling signals are sampled at
-macro-step points t_n and extrapolated by a polynomial of order k through y(t_n), ...,
-y(t_{n-k}).  A component with step ratio r makes r communication steps of H / r per macro
-step; its inputs are the polynomial evaluated at the start of each communication step and
-held over it ("hold"), or evaluated at every solver stage time ("polynomial").
+multistep history carries on across communication steps).  The coupling follows the runtime
+(master/backends/component.py, master/schedule.py): a component with step ratio r makes r
+communication steps of H / r per macro step and samples its outputs after each; a consumer's
+input is the polynomial of order k through the source's last samples up to t_n, evaluated at
+the start of each communication step and held over it ("hold"), or at every solver stage time
+("polynomial"); feedthrough outputs are read with the inputs evaluated at the step's end.
 
 The scheme is linear in its extended state z = (states, solver histories, coupling history),
 so one macro step is z_(n+1) = G(H) z_n; the co-simulation is stable iff rho(G) < 1.
@@ -88,16 +89,66 @@ def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] |
     return next(((p, o) for p, o, c, i in scheme.connections if c == consumer and i == name), None)
 
 
-def _inputs(columns: list, t: float, big_h: float) -> np.ndarray:
-    """Inputs at t (s after t_n): polynomials through each source's samples up to t_n."""
-    vals = []
-    for col in columns:
-        if col is None:
-            vals.append(0.0)  # undriven: the linearisation is about its operating value
-            continue
-        ys, ratio = col
-        vals.append(float(extrapolation_weights(len(ys) - 1, t * ratio / big_h) @ ys))
-    return np.array(vals)
+def _window(order: int, ks: int, kc: int, n: int, j: int, relaxed: bool) -> tuple[int, int]:
+    """(last source sample, order used) for the consumer's step j in macro step n (Jacobi);
+    relaxed: a start-up sweep, where the source's samples up to t_(n+1) exist."""
+    available = (n + 1) * ks if relaxed else n * ks
+    j_end = min(available, -((-(j + 1) * ks) // kc))
+    return j_end, min(order, j_end)
+
+
+class _State:
+    """One component's solver state: x, f_(n-1), f_(n-2), Delta_(n-1), steps taken."""
+
+    def __init__(self, x, f1, f2, delta, count: int) -> None:
+        self.x, self.f1, self.f2, self.delta, self.count = x, f1, f2, delta, count
+
+    def copy(self) -> _State:
+        return _State(self.x.copy(), self.f1.copy(), self.f2.copy(), self.delta.copy(), self.count)
+
+
+def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int, big_h: float,
+             relaxed: bool = False) -> None:  # fmt: skip
+    """Macro step n of every component: states in place; samples read from `read`, own new
+    samples written into `write` (dicts: component -> {sample index: outputs})."""
+    comps = {c.name: c for c in scheme.components}
+    for c in scheme.components:
+        st = states[c.name]
+        kc = c.step_ratio
+        drivers = [_driver(scheme, c.name, i) for i in c.inputs]
+
+        def inputs(j: int, at: float, drivers=drivers, kc=kc) -> np.ndarray:
+            vals = np.zeros(len(drivers))
+            for q, d in enumerate(drivers):
+                if d is None:
+                    continue  # undriven: the linearisation is about its operating value
+                src = comps[d[0]]
+                ks, col = src.step_ratio, src.outputs.index(d[1])
+                j_end, p = _window(scheme.order, ks, kc, n, j, relaxed)
+                w = extrapolation_weights(p, (at * ks - j_end * kc) / kc)
+                vals[q] = sum(w[i] * read[src.name][j_end - i][col] for i in range(p + 1))
+            return vals
+
+        h = big_h / kc / c.substeps
+        for j in range(n * kc, n * kc + kc):
+            u0 = inputs(j, j)
+            for m in range(c.substeps):
+                if scheme.inputs == "hold":
+                    u_of_t = _constant(u0)
+                else:
+                    u_of_t = _polynomial(inputs, j, (m / c.substeps), 1.0 / c.substeps)
+                _solver_step(c, h, st.x, st.f1, st.f2, st.delta, u_of_t, st.count)
+                st.count += 1
+            u1 = inputs(j, j + 1) if len(drivers) else u0
+            write[c.name][j + 1] = c.c @ st.x + (c.d @ u1 if len(u1) else 0.0)
+
+
+def _constant(u0: np.ndarray):
+    return lambda theta: u0
+
+
+def _polynomial(inputs, j: int, frac0: float, dfrac: float):
+    return lambda theta: inputs(j, j + frac0 + theta * dfrac)
 
 
 def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t, count: int = 2) -> None:
@@ -144,60 +195,27 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t, coun
     f1[:] = fn
 
 
-def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float, n: int | None = None) -> np.ndarray:
-    """One Jacobi macro step of size big_h (s) applied to the extended state z.
-
-    As master/backends/component.py does it: the consumer's input for its communication step
-    starting at t is the polynomial through the source's samples up to t_n evaluated at t;
-    after each communication step the component samples its outputs, y = C x + D u with the
-    input u it held over that step (the FMU restores the set value after the step).
-    n: index of the macro step, to reproduce the start-up (lower orders, solver start-up);
-    None: the steady scheme (full histories), as the stability analysis needs it.
-    """
+def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
+    """One steady Jacobi macro step of size big_h (s) applied to the extended state z."""
     lay = _Layout(scheme)
     z = np.asarray(z, dtype=float)
     k = scheme.order
-    comps = {c.name: c for c in scheme.components}
-    # samples[name][i]: outputs of `name` at its communication point t_n - i h_name
-    samples = {c.name: z[lay.samples[c.name]].reshape(k + 1, len(c.outputs)) for c in scheme.components}
-    out = z.copy()
+    n = k + 1  # any macro step past the start-up
+    states, hist = {}, {}
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
-        x, f1, f2, delta = out[sx], out[s1], out[s2], out[sd]  # views into out
-        columns = []
-        for name in c.inputs:
-            d = _driver(scheme, c.name, name)
-            src = comps[d[0]] if d else None
-            used = k if n is None else min(k, n * src.step_ratio)  # start-up: samples that exist
-            columns.append(
-                (samples[src.name][: used + 1, src.outputs.index(d[1])], src.step_ratio) if d else None
-            )
-        h_comm = big_h / c.step_ratio
-        h = h_comm / c.substeps
-        new = []
-        for j in range(c.step_ratio):
-            t_comm = j * h_comm  # step start, s after t_n
-            u0 = _inputs(columns, t_comm, big_h)
-            for m in range(c.substeps):
-                t0 = t_comm + m * h
-                if scheme.inputs == "hold":
-                    u_of_t = _constant(u0)
-                else:
-                    u_of_t = _polynomial(columns, t0, h, big_h)
-                count = 2 if n is None else n * c.step_ratio * c.substeps + j * c.substeps + m
-                _solver_step(c, h, x, f1, f2, delta, u_of_t, count)
-            new.append(c.c @ x + (c.d @ u0 if len(u0) else 0.0))
-        hist = np.vstack([np.array(new[::-1]).reshape(-1, len(c.outputs)), samples[c.name]])[: k + 1]
-        out[lay.samples[c.name]] = hist.ravel()
+        states[c.name] = _State(z[sx].copy(), z[s1].copy(), z[s2].copy(), z[sd].copy(), 2)
+        ys = z[lay.samples[c.name]].reshape(k + 1, len(c.outputs))
+        hist[c.name] = {n * c.step_ratio - i: ys[i] for i in range(k + 1)}
+    _advance(scheme, states, hist, hist, n, big_h)
+    out = np.empty_like(z)
+    for c in scheme.components:
+        sx, s1, s2, sd = lay.slices[c.name]
+        st = states[c.name]
+        out[sx], out[s1], out[s2], out[sd] = st.x, st.f1, st.f2, st.delta
+        last = (n + 1) * c.step_ratio
+        out[lay.samples[c.name]] = np.concatenate([hist[c.name][last - i] for i in range(k + 1)])
     return out
-
-
-def _constant(u0: np.ndarray):
-    return lambda theta: u0
-
-
-def _polynomial(columns: list, t0: float, h: float, big_h: float):
-    return lambda theta: _inputs(columns, t0 + theta * h, big_h)
 
 
 def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:
@@ -236,35 +254,45 @@ def largest_stable_step(scheme: LinearScheme, h_min: float, h_max: float, rel_to
     return lo
 
 
-def initial_state(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> np.ndarray:
-    """Extended state at the start: states x0 (per component), consistent output samples at t_0."""
-    lay = _Layout(scheme)
-    z = np.zeros(lay.size)
+def initial_outputs(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Consistent outputs at t_0 (inputs from the sources' outputs, feedthrough settled)."""
     y = {c.name: np.zeros(len(c.outputs)) for c in scheme.components}
+    comps = {c.name: c for c in scheme.components}
     for _ in range(len(scheme.components) + 1):  # settles any acyclic feedthrough chain
         for c in scheme.components:
-            u = np.array([0.0 if d is None else y[d[0]][_index(scheme, d)] for d in
-                          (_driver(scheme, c.name, i) for i in c.inputs)])  # fmt: skip
+            drivers = [_driver(scheme, c.name, i) for i in c.inputs]
+            u = np.array([0.0 if d is None else y[d[0]][comps[d[0]].outputs.index(d[1])] for d in drivers])
             y[c.name] = c.c @ x0[c.name] + (c.d @ u if len(u) else 0.0)
-    for c in scheme.components:
-        z[lay.slices[c.name][0]] = x0[c.name]
-        z[lay.samples[c.name]][: len(c.outputs)] = y[c.name]
-    return z
+    return y
 
 
-def _index(scheme: LinearScheme, driver: tuple[str, str]) -> int:
-    comp = next(c for c in scheme.components if c.name == driver[0])
-    return comp.outputs.index(driver[1])
+def startup(scheme: LinearScheme) -> tuple[int, int]:
+    """(start-up macro steps, sweeps per step) as the runtime plans them when every FMU can
+    save its state: steps while a link lacks samples for its order, each repeated `order` times."""
+    if scheme.order == 0 or not scheme.connections:
+        return 0, 0
+    comps = {c.name: c for c in scheme.components}
+    steps = max(-(-scheme.order // comps[p].step_ratio) for p, _, _, _ in scheme.connections)
+    return steps, scheme.order
 
 
 def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int) -> np.ndarray:
     """States of every component at the macro points 0 .. n_steps, start-up included; shape
     (n_steps + 1, total states) in component order."""
-    lay = _Layout(scheme)
-    z = initial_state(scheme, x0)
-    idx = np.concatenate([np.arange(lay.size)[lay.slices[c.name][0]] for c in scheme.components])
-    out = [z[idx]]
+    states = {}
+    for c in scheme.components:
+        zeros = (np.zeros(c.a.shape[0]) for _ in range(3))
+        states[c.name] = _State(np.array(x0[c.name], dtype=float), *zeros, 0)
+    y0 = initial_outputs(scheme, x0)
+    hist = {c.name: {0: y0[c.name]} for c in scheme.components}
+    steps, sweeps = startup(scheme)
+    rows = [np.concatenate([states[c.name].x for c in scheme.components])]
     for n in range(n_steps):
-        z = macro_step(scheme, z, big_h, n)
-        out.append(z[idx])
-    return np.array(out)
+        saved = {name: st.copy() for name, st in states.items()}
+        _advance(scheme, states, hist, hist, n, big_h)
+        for _ in range(sweeps if n < steps else 0):
+            previous = {name: dict(h) for name, h in hist.items()}
+            states = {name: st.copy() for name, st in saved.items()}
+            _advance(scheme, states, previous, hist, n, big_h, relaxed=True)
+        rows.append(np.concatenate([states[c.name].x for c in scheme.components]))
+    return np.array(rows)
