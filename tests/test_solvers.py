@@ -298,3 +298,28 @@ def test_nonlinear_fmu_follows_its_closed_form_for_other_parameters(nonlinear: S
     assert np.linalg.norm(final - exact) < 1e-7  # measured 2.0e-8
     # The same run from the default start is far off: the parameters were really used.
     assert np.linalg.norm(nonlinear.run(RK4, 0.01, 1.0, 1, {}, ["x", "y"])[-1] - exact) > 0.1
+
+
+def main() -> None:
+    """Print the measured orders and stability limits (python tests/test_solvers.py)."""
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp())
+    nl, dq = Slave("nonlinear", tmp), Slave("dahlquist", tmp)
+    steps = [40, 80, 160, 320]
+    for kind in ORDERS:
+        orders = []
+        for substeps in (True, False):
+            errors = [nonlinear_error(nl, kind, 2.0, n, substeps) for n in steps]
+            orders.append(observed_order([2.0 / n for n in steps], errors))
+        print(f"{NAMES[kind]:12s} order: internal steps {orders[0]:.3f}, communication steps {orders[1]:.3f}")
+    for kind, limit in LIMITS.items():
+        found = bisect_limit(dq, kind, 0.5 * limit, 1.5 * limit)
+        print(f"{NAMES[kind]:12s} limit {found:.5f} (exact {limit:.5f}, {(found - limit) / limit:+.2%})")
+    for kind in (SI_EULER, SI_MIDPOINT):
+        y = dq.run(kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
+        print(f"{NAMES[kind]:12s} z = -1e6: max |y| {np.max(np.abs(y)):.6g}, y(2000) {y[-1]:.6g}")
+
+
+if __name__ == "__main__":
+    main()
