@@ -91,7 +91,7 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     _components(ctx, system)
     connections, links = _connections(ctx, system)
     times = _experiment(ctx, root)
-    setup = settings.read(ctx, root, system, connections, times)
+    setup = settings.read(ctx, root, system, times)
     params = bindings.read(ctx, system, overrides)
     _undriven(ctx, setup, params)
     loops.check(ctx, links)

@@ -91,7 +91,6 @@ def read(
     ctx: Context,
     root: etree._Element,
     system: etree._Element,
-    connections: list[tuple[tuple[str, str, str, str], etree._Element]],
     times: tuple[Fraction, Fraction] | None,
 ) -> Settings | None:
     """The checked settings, or None if the macro step is unusable (problems added)."""
@@ -115,7 +114,11 @@ def read(
             )
     _components(ctx, elem, s)
     _order(ctx, elem, s)
-    _connections(ctx, elem, s, {key[2:] for key, _ in connections})
+    ends = {
+        (c.get("endElement"), c.get("endConnector"))
+        for c in system.iter(tag(NS_SSD, "Connection"))  # also those with problems of their own
+    }
+    _connections(ctx, elem, s, ends)
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     return s
@@ -203,11 +206,12 @@ def _order(ctx: Context, elem: etree._Element, s: Settings) -> None:
     s.order = tuple(names)
 
 
-def _connections(ctx: Context, elem: etree._Element, s: Settings, inputs: set[tuple[str, str]]) -> None:
+def _connections(ctx: Context, elem: etree._Element, s: Settings, ends: set[tuple[str, str]]) -> None:
+    """Per-connection extrapolation orders, keyed by the input each connection drives."""
     for ce in elem.findall(tag(NS_MM, "Connection")):
         key = (ce.get("endElement", ""), ce.get("endConnector", ""))
         order = _int(ce.get("extrapolationOrder"))
-        if key not in inputs:
+        if key not in ends:
             ctx.at(ce, f"no connection drives {key[0]}.{key[1]}")
         elif key in s.connection_order:
             ctx.at(ce, f"{key[0]}.{key[1]} has settings twice")

@@ -5,7 +5,7 @@ Int32 output `steps` (communication steps taken) to test type checks across FMI 
 Its ModelStructure gives no dependencies for y, which means y depends on every input.
 """
 
-from pythonfmu3 import Fmi3Causality, Fmi3Slave, Fmi3Variability, Float64, Int32
+from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Variability, Int32
 
 
 class Lag3(Fmi3Slave):
@@ -24,7 +24,9 @@ class Lag3(Fmi3Slave):
         )
         self.register_variable(Float64("u", causality=Fmi3Causality.input))
         self.register_variable(Float64("y", causality=Fmi3Causality.output))
-        self.register_variable(Int32("steps", causality=Fmi3Causality.output, variability=Fmi3Variability.discrete))
+        self.register_variable(
+            Int32("steps", causality=Fmi3Causality.output, variability=Fmi3Variability.discrete)
+        )
 
     def do_step(self, current_time, step_size):
         self.y += step_size * (self.u - self.y) / self.tau

@@ -1,0 +1,119 @@
+""".ssp archives: a packed scene loads like the loose one; unsafe members are refused unpacked."""
+
+from __future__ import annotations
+
+import shutil
+import stat
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from master.fmubuild import fmu_path
+from master.scenario import ScenarioError, load, validate
+
+SCENE = Path(__file__).parent / "scenarios" / "oscillator"
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Unpack into this test's folder, not the shared temporary one."""
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("MULTIRATE_MASTER_CACHE", str(folder))
+    return folder
+
+
+def pack(path: Path, members: dict[str, bytes], links: dict[str, str] | None = None) -> Path:
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+        for name, target in (links or {}).items():
+            info = zipfile.ZipInfo(name)
+            info.external_attr = (stat.S_IFLNK | 0o777) << 16
+            zf.writestr(info, target)
+    return path
+
+
+def oscillator_members() -> dict[str, bytes]:
+    """The oscillator scene with mass1's FMU packed inside (resources/msd.fmu)."""
+    ssd = (SCENE / "oscillator.ssd").read_text().replace('source="msd"', 'source="resources/msd.fmu"')
+    return {
+        "SystemStructure.ssd": ssd.encode(),
+        "mass1.ssv": (SCENE / "mass1.ssv").read_bytes(),
+        "coupling.ssv": (SCENE / "coupling.ssv").read_bytes(),
+        "resources/msd.fmu": fmu_path("msd").read_bytes(),
+    }
+
+
+def test_packed_scene_loads_like_the_loose_one(tmp_path: Path, cache: Path):
+    archive = pack(tmp_path / "oscillator.ssp", oscillator_members())
+    packed, loose = load(archive), load(SCENE / "oscillator.ssd")
+    assert packed.path == archive.resolve()
+    m1 = packed.components[0]
+    assert m1.fmu_path.is_relative_to(cache) and m1.fmu_path.name == "msd.fmu"
+    assert m1.fmu_path.read_bytes() == fmu_path("msd").read_bytes()
+    assert [c.parameters for c in packed.components] == [c.parameters for c in loose.components]
+    assert (packed.connections, packed.macro_step, packed.stop_time) == (
+        loose.connections,
+        loose.macro_step,
+        loose.stop_time,
+    )
+    assert load(archive).components[0].fmu_path == m1.fmu_path  # unpacked once, reused
+
+
+def test_problems_inside_an_archive_name_archive_and_member(tmp_path: Path):
+    members = oscillator_members()
+    members["mass1.ssv"] = members["mass1.ssv"].replace(b'name="m"', b'name="mass"')
+    archive = pack(tmp_path / "scene.ssp", members)
+    (problem,) = validate(archive)
+    assert problem.file == f"{archive}!/mass1.ssv"
+    assert problem.element == 'ssv:Parameter "mass"' and 'has no "mass"' in problem.message
+
+
+@pytest.mark.parametrize(
+    "member, reason",
+    [
+        ("../escape.txt", "escapes the archive"),
+        ("resources/../../escape.txt", "escapes the archive"),
+        ("/tmp/escape.txt", "absolute member path"),
+        ("link", "symbolic link member"),
+    ],
+)
+def test_unsafe_members_are_rejected_and_nothing_is_unpacked(
+    tmp_path: Path, cache: Path, member: str, reason: str
+):
+    members = oscillator_members()
+    links = {}
+    if member == "link":
+        links[member] = "/etc/passwd"
+    else:
+        members[member] = b"not for outside"
+    archive = pack(tmp_path / "evil.ssp", members, links)
+    problems = validate(archive)
+    assert len(problems) == 1
+    assert problems[0].file == str(archive)
+    assert problems[0].element == f'member "{member}"'
+    assert reason in problems[0].message
+    assert not cache.exists() or not any(cache.iterdir())
+    assert not (tmp_path / "escape.txt").exists() and not Path("/tmp/escape.txt").exists()
+    with pytest.raises(ScenarioError):
+        load(archive)
+
+
+def test_source_may_not_leave_the_archive(tmp_path: Path):
+    members = oscillator_members()
+    members["SystemStructure.ssd"] = members["SystemStructure.ssd"].replace(
+        b'source="resources/msd.fmu"', b'source="../msd.fmu"'
+    )
+    shutil.copy(fmu_path("msd"), tmp_path / "msd.fmu")
+    (problem,) = validate(pack(tmp_path / "scene.ssp", members))
+    assert problem.element == 'ssd:Component "mass1"' and "points outside the archive" in problem.message
+
+
+def test_archive_without_ssd_or_not_a_zip(tmp_path: Path):
+    (problem,) = validate(pack(tmp_path / "empty.ssp", {"readme.txt": b"nothing"}))
+    assert "has no SystemStructure.ssd at its root" in problem.message
+    junk = tmp_path / "junk.ssp"
+    junk.write_bytes(b"this is not a zip archive")
+    (problem,) = validate(junk)
+    assert problem.file == str(junk) and "not a readable .ssp (zip) archive" in problem.message
