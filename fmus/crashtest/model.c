@@ -83,7 +83,7 @@ static ModelStatus derivatives(Instance *inst, double t, const double *x, double
     if (t >= r[R_AT_TIME]) {
         switch (model_integers(inst)[I_MODE]) {
         case MODE_SEGFAULT: {
-            int *volatile nowhere = NULL; /* volatile: the compiler may not drop the write */
+            volatile int *volatile nowhere = NULL; /* volatile pointer and target: the write stays */
             *nowhere = 1;
             break;
         }
