@@ -1,0 +1,248 @@
+"""Parallel backend: bit-identical to the serial backend, failures isolated and reported.
+
+Real FMUs built from C run in real worker processes; no child process may outlive a run.
+"""
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+import time
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import psutil
+import pytest
+
+import master.api as api
+from master.backends.component import SimulationError
+from master.backends.parallel import ParallelBackend, choose_backend, levels, worker_groups
+from master.fmubuild import fmu_path
+from master.scenario.model import Component, Connection, Scenario
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def helper_pids() -> set[int]:
+    """multiprocessing's own helper (the shared-memory resource tracker) may stay; workers may not."""
+    from multiprocessing import resource_tracker
+
+    pid = getattr(resource_tracker._resource_tracker, "_pid", None)
+    return {pid} if pid else set()
+
+
+def assert_no_children() -> None:
+    deadline = time.monotonic() + 2.0
+    while True:
+        left = [p for p in psutil.Process().children(recursive=True) if p.pid not in helper_pids()]
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    assert left == [], f"processes left behind: {left}"
+
+
+def oscillator(H=Fraction(1, 100), order=2, coupling="jacobi", ratios=(1, 1), interpolate=(True, True)):
+    """Two-mass oscillator, parameter set A, split in two msd FMUs (as tests/test_oscillator.py)."""
+    msd = fmu_path("msd")
+    k1, k2 = ratios
+    p1 = {"solver": 4, "internal_step": float(H / (20 * k1)), "x0": 1.0}
+    p2 = {"solver": 4, "internal_step": float(H / (20 * k2)), "cc": 1.0, "dc": 1.0}
+    return Scenario(
+        path=Path("oscillator.ssd"),
+        name="oscillator",
+        components=(
+            Component("mass1", msd, p1, k1, order, interpolate[0]),
+            Component("mass2", msd, p2, k2, order, interpolate[1]),
+        ),
+        connections=(
+            Connection("mass2", "F_c", "mass1", "F"),
+            Connection("mass1", "x", "mass2", "x_in"),
+            Connection("mass1", "v", "mass2", "v_in"),
+        ),
+        start_time=Fraction(0),
+        stop_time=Fraction(3),
+        macro_step=H,
+        coupling=coupling,
+        order=("mass1", "mass2"),
+    )
+
+
+def lags(n=2, stop=Fraction(2), H=Fraction(1, 100), params=None, ratios=None, xorder=2, **kw) -> Scenario:
+    """n crashtest lags in a ring (c0.y -> c1.u -> ... -> c0.u); params per component name."""
+    ct = fmu_path("crashtest")
+    params = params or {}
+    ratios = ratios or [1] * n
+    comps = tuple(
+        Component(
+            f"c{i}", ct, {"solver": 4, "y": float(i) - 0.5, **params.get(f"c{i}", {})}, ratios[i], xorder
+        )
+        for i in range(n)
+    )
+    conns = tuple(Connection(f"c{i}", "y", f"c{(i + 1) % n}", "u") for i in range(n))
+    base = dict(
+        path=Path("lags.ssd"),
+        name="lags",
+        components=comps,
+        connections=conns,
+        start_time=Fraction(0),
+        stop_time=stop,
+        macro_step=H,
+    )
+    base.update(kw)
+    return Scenario(**base)
+
+
+def assert_identical(sc: Scenario) -> np.ndarray:
+    a = api.run(sc, backend="serial")
+    b = api.run(sc, backend="parallel")
+    da, db = a.data, b.data
+    assert da.dtype.names == db.dtype.names
+    every = 1 if sc.record_interval is None else int(sc.record_interval / sc.macro_step)
+    assert len(da) == 1 + int((sc.stop_time - sc.start_time) / sc.macro_step) // every
+    for name in da.dtype.names:
+        assert np.array_equal(da[name], db[name]), f"{name} differs"
+    assert a.summary.steps == b.summary.steps
+    assert_no_children()
+    return da
+
+
+@pytest.mark.parametrize(
+    "variant",
+    [
+        dict(),
+        dict(order=3, interpolate=(False, False)),
+        dict(ratios=(1, 4), order=1, interpolate=(False, False)),
+        dict(coupling="gauss-seidel", order=2),
+    ],
+    ids=["jacobi-interpolating", "jacobi-order3", "multirate-1-4", "gauss-seidel"],
+)
+def test_oscillator_bitwise_equal_to_serial(variant):
+    d = assert_identical(oscillator(**variant))
+    assert np.ptp(d["mass1.x"]) > 0.5  # it really oscillates
+
+
+def test_oscillator_scenario_file_bitwise_equal():
+    sc = api.load_scenario(REPO / "tests" / "scenarios" / "oscillator" / "oscillator.ssd")
+    assert_identical(dataclasses.replace(sc, stop_time=sc.start_time + 200 * sc.macro_step))
+
+
+def test_multirate_ring_with_groups_bitwise_equal():
+    """Three lags, step ratios 1/3/2, two of them sharing a worker (scenario groups)."""
+    sc = lags(3, ratios=[1, 3, 2], xorder=2)
+    comps = list(sc.components)
+    comps[1] = dataclasses.replace(comps[1], group="g")
+    comps[2] = dataclasses.replace(comps[2], group="g")
+    sc = dataclasses.replace(sc, components=tuple(comps))
+    p = api.plan(sc)
+    assert worker_groups(p) == [["c0"], ["c1", "c2"]]
+    d = assert_identical(sc)
+    assert np.ptp(d["c1.y"]) > 0.1
+
+
+def test_gauss_seidel_levels():
+    sc = lags(3, coupling="gauss-seidel", order=("c0", "c1", "c2"))
+    assert levels(api.plan(sc)) == {"c0": 0, "c1": 1, "c2": 2}
+    assert_identical(sc)
+
+
+@pytest.mark.parametrize("scene", ["dc-motor-arm", "hydraulic-manipulator"])
+def test_paper_scene_bitwise_equal(scene):
+    files = sorted((REPO / "models" / scene).glob("*.ssd"))
+    if not files:
+        pytest.skip(f"models/{scene} has no scenario yet")
+    sc = api.load_scenario(files[0])
+    n = int((sc.stop_time - sc.start_time) / sc.macro_step)
+    assert_identical(dataclasses.replace(sc, stop_time=sc.start_time + min(n, 300) * sc.macro_step))
+
+
+# -- failures ------------------------------------------------------------------------------------
+
+CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested"}
+
+
+@pytest.mark.parametrize("mode", [1, 2, 3, 4], ids=["segfault", "hang", "abort", "error"])
+def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path):
+    """c1 misbehaves from t = 0.5 s: the run stops there, rows up to the last macro step are kept."""
+    sc = lags(2, params={"c1": {"mode": mode, "at_time": 0.5}})
+    out = tmp_path / "out.csv"
+    t0 = time.monotonic()
+    with pytest.raises(SimulationError) as info:
+        api.run(sc, backend="parallel", output=out, step_timeout=0.5)
+    assert time.monotonic() - t0 < 5
+    e = info.value
+    msg = str(e)
+    assert e.component == "c1" and "c1" in msg
+    assert CAUSES[mode] in msg
+    assert e.time == pytest.approx(0.5, abs=0.011)
+    assert "0.5" in msg
+    data = e.result.data
+    assert data["time"][-1] == pytest.approx(0.5, abs=0.011)
+    assert len(data) >= 50
+    assert "failed" in e.result.summary.stop_reason
+    rows = out.read_text().splitlines()
+    assert len(rows) == 1 + len(data)
+    assert_no_children()
+
+
+def test_exclusive_fmu_runs_twice_only_in_workers():
+    """An FMU allowing one instance per process: serial fails, one worker per instance works."""
+    sc = lags(2, params={"c0": {"exclusive": True}, "c1": {"exclusive": True}})
+    with pytest.raises(Exception, match="another exclusive instance"):
+        api.run(sc, backend="serial")
+    d = api.run(sc, backend="parallel").data
+    assert len(d) == 201
+    assert_no_children()
+
+
+def test_sigint_stops_cleanly_with_partial_results(tmp_path):
+    """Ctrl-C on the master: message with the time, rows so far written, no worker left."""
+    script = tmp_path / "run.py"
+    out = tmp_path / "out.csv"
+    here, costly = str(Path(__file__).parent), "{'c0': {'cost_us': 200}, 'c1': {'cost_us': 200}}"
+    script.write_text(
+        f"import sys\nfrom fractions import Fraction\nsys.path.insert(0, {here!r})\n"
+        "import test_parallel as t\nimport master.api as api\n"
+        f"sc = t.lags(2, stop=Fraction(1000), params={costly})\n"
+        f"try:\n    api.run(sc, backend='parallel', output={str(out)!r})\n"
+        "except api.SimulationError as e:\n    print('STOPPED', e, flush=True)\n"
+    )
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    ps = psutil.Process(proc.pid)
+    workers: list[psutil.Process] = []
+    deadline = time.monotonic() + 20
+    while len(workers) < 2 and time.monotonic() < deadline:
+        workers = ps.children(recursive=True)
+        time.sleep(0.1)
+    time.sleep(0.5)  # let it compute some macro steps
+    workers = ps.children(recursive=True)  # the workers and multiprocessing's resource tracker
+    os.kill(proc.pid, signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=20)
+    assert "STOPPED interrupted (SIGINT)" in stdout
+    rows = out.read_text().splitlines()
+    assert len(rows) > 10
+    gone, alive = psutil.wait_procs(workers, timeout=3)
+    assert alive == []
+
+
+def test_auto_picks_serial_for_cheap_and_parallel_for_heavy_scene():
+    cheap = api.plan(lags(2))
+    assert choose_backend(cheap)[0] == "serial"
+    heavy = api.plan(lags(2, stop=Fraction(20), params={f"c{i}": {"cost_us": 400} for i in range(2)}))
+    choice, why = choose_backend(heavy)
+    if os.cpu_count() and os.cpu_count() >= 2:
+        assert choice == "parallel", why
+    assert "us/step" in why
+    r = api.run(lags(2, stop=Fraction(1, 10)), backend="auto")
+    assert r.summary.backend.startswith("serial (auto:")
+    assert_no_children()
+
+
+def test_backend_close_without_open_and_twice():
+    be = ParallelBackend(api.plan(lags(2)))
+    be.close()
+    be.open()
+    be.close()
+    be.close()
+    assert_no_children()
