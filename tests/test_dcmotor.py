@@ -41,7 +41,9 @@ def motor():
 class Slave:
     """The motor FMU through Co-Simulation with parameters and inputs set by name."""
 
-    def __init__(self, path: Path, params: dict[str, float], solver: int) -> None:
+    def __init__(
+        self, path: Path, params: dict[str, float], solver: int, integers: dict[str, int] | None = None
+    ) -> None:
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.dir = extract(str(path))
@@ -53,7 +55,8 @@ class Slave:
         )
         self.f.instantiate()
         self.f.setupExperiment(startTime=0.0)
-        self.f.setInteger([self.vr["solver"]], [solver])
+        ints = {"solver": solver, **(integers or {})}
+        self.f.setInteger([self.vr[k] for k in ints], list(ints.values()))
         self.set(params)
         self.f.enterInitializationMode()
         self.f.exitInitializationMode()
@@ -174,3 +177,86 @@ def test_analytic_jacobian_equals_finite_differences(motor):
         np.testing.assert_allclose(analytic, -(k_ii + R * np.eye(3)) / L, rtol=1e-14)
     finally:
         m.close()
+
+
+# ---------------------------------------------------------------- closed around the arm
+
+
+@pytest.fixture(scope="module")
+def controller():
+    """Parameters of the checked-in controller.ssv and the set point z* they hold."""
+    params = pp.read_ssv(SCENE / "controller.ssv")
+    z_ref = np.concatenate([pp.Q_REF, np.zeros(3), [params[f"i_ref{k}"] for k in (1, 2, 3)]])
+    return params, z_ref
+
+
+@pytest.fixture(scope="module")
+def arm_system(motor, controller):
+    """Arm and motors with the gains, through Model Exchange: z' = F(z)."""
+    system = pp.CoupledArm(fmu_path("manipulator"), motor, controller[0])
+    yield system
+    system.close()
+
+
+def test_controller_file_is_what_the_script_computes(motor, controller):
+    """controller.ssv is current: place_poles.design() on today's FMUs gives the same numbers."""
+    fresh = pp.design(fmu_path("manipulator"), motor)
+    assert set(fresh) == set(controller[0])
+    for name, value in fresh.items():
+        assert value == pytest.approx(controller[0][name], rel=1e-6, abs=1e-9), name
+
+
+def test_set_point_is_an_equilibrium_with_the_placed_poles(arm_system, controller):
+    """F(z*) = 0 (holding currents balance gravity) and eig(dF/dz) are the chosen poles."""
+    _, z_ref = controller
+    assert np.abs(arm_system.rhs(z_ref)).max() < 1e-9
+    assert abs(z_ref[7]) > 1.0  # gravity really needs holding current on the shoulder
+    eig = np.sort_complex(np.linalg.eigvals(pp.closed_loop_jacobian(arm_system, z_ref)))
+    np.testing.assert_allclose(eig, np.sort_complex(pp.POLES), rtol=1e-5)
+
+
+def test_closed_loop_co_simulation_settles_at_the_set_points(motor, controller):
+    """Both FMUs through Co-Simulation, Jacobi coupling at H = 1 ms (arm: AB3, motors:
+    semi-implicit Euler), starting 3 degrees off on every joint: after 3 s the joints are back
+    at (0, 45, 300) degrees and the currents at their holding values."""
+    params, z_ref = controller
+    off = np.radians([3.0, -3.0, 3.0])
+    arm_path = fmu_path("manipulator")
+    arm = Slave(arm_path, {f"q{k + 1}_0": pp.Q_REF[k] + off[k] for k in range(3)}, AB3, {"actuation": 0})
+    start_i = {f"i{k}": params[f"i_ref{k}"] for k in (1, 2, 3)}
+    mot = Slave(motor, {**params, **start_i}, SI_EULER)
+    names = ["q1", "q2", "q3", "qd1", "qd2", "qd3"]
+    h, deviation = 1e-3, []
+    try:
+        for _ in range(3000):
+            mot.set(dict(zip(names, arm.get(names), strict=True)))
+            torques = mot.get(["torque1", "torque2", "torque3"])
+            arm.set({f"effort{k + 1}": torques[k] for k in range(3)})
+            arm.step(h)
+            mot.step(h)
+            deviation.append(np.abs(arm.get(names[:3]) - pp.Q_REF).max())
+        assert deviation[0] > 0.02  # it did start off the set point
+        assert deviation[-1] < 1e-6
+        np.testing.assert_allclose(mot.get(CURRENTS), z_ref[6:], atol=1e-5)
+    finally:
+        arm.close()
+        mot.close()
+
+
+def test_ab3_on_the_whole_system_largest_stable_step(arm_system, controller):
+    """AB3 (one step, both FMUs' Model Exchange equations) is stable up to the step that puts
+    the fastest closed-loop eigenvalue on the boundary of its stability region.
+
+    Prediction: h* = min over eigenvalues of the AB3 boundary along h lambda; with the
+    fastest pole at -250 1/s that is (6/11) / 250 = 2.18e-3 s.  Measurement: bisection on h,
+    10 halvings of [0.8, 1.25] h*, 1 s from a deviation of every state; a step counts as
+    unstable when the deviation ends larger than it began.  Tolerance 1 %: slightly above
+    h* the growth per step is slow, so the measured limit sits a little above h*.
+    """
+    _, z_ref = controller
+    predicted = pp.ab3_prediction(pp.closed_loop_jacobian(arm_system, z_ref))
+    assert predicted == pytest.approx(6 / 11 / 250, rel=1e-4)
+    dz0 = np.array([0.01, -0.01, 0.01, 0.05, -0.05, 0.05, 0.1, -0.1, 0.1])
+    measured = pp.ab3_stable_step(arm_system, z_ref, dz0, 0.8 * predicted, 1.25 * predicted, 1.0, 10)
+    print(f"AB3 whole system: predicted {predicted:.5e} s, measured {measured:.5e} s (paper: 2e-3 s)")
+    assert measured == pytest.approx(predicted, rel=0.01)
