@@ -20,7 +20,7 @@ class Lag3(Fmi3Slave):
         self.steps = 0
         self.register_variable(Float64("time", causality=Fmi3Causality.independent))
         self.register_variable(
-            Float64("tau", causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed, unit="s")
+            Float64("tau", causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed)
         )
         self.register_variable(Float64("u", causality=Fmi3Causality.input))
         self.register_variable(Float64("y", causality=Fmi3Causality.output))

@@ -1,0 +1,85 @@
+"""FMI 3.0 FMUs in scenarios: read through fmpy like FMI 2.0 ones, Float64 connects to Real.
+
+The FMU is real: tests/scenarios/fmi3/Lag3.py built with pythonfmu3 (binaries included)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import fmpy
+import pytest
+
+from master.scenario import load, validate
+
+SOURCE = Path(__file__).parent / "scenarios" / "fmi3"
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """lag_and_body.ssd beside a freshly built Lag3.fmu."""
+    folder = tmp_path_factory.mktemp("fmi3")
+    subprocess.run(
+        [sys.executable, "-m", "pythonfmu3", "build", "-f", str(SOURCE / "Lag3.py"), "-d", str(folder)],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    shutil.copy(SOURCE / "lag_and_body.ssd", folder)
+    return folder / "lag_and_body.ssd"
+
+
+def variant(scene: Path, name: str, old: str, new: str) -> Path:
+    text = scene.read_text()
+    assert old in text
+    path = scene.with_name(f"{name}.ssd")
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def test_fmi3_fmu_is_accepted_beside_fmi2(scene: Path):
+    assert fmpy.read_model_description(str(scene.with_name("Lag3.fmu"))).fmiVersion == "3.0"
+    assert validate(scene) == []
+    sc = load(scene, {"body.m": "2"})
+    lag, body = sc.components
+    assert lag.fmu_path == scene.with_name("Lag3.fmu").resolve()
+    assert lag.parameters == {"tau": 0.5} and lag.step_ratio == 2
+    assert body.parameters == {"m": 2.0}
+    assert load(scene, {"lag.tau": "3"}).components[0].parameters == {"tau": 3.0}
+
+
+def test_fmi3_type_mismatch_names_both_types(scene: Path):
+    path = variant(
+        scene,
+        "int_to_real",
+        'startConnector="y" endElement="body"',
+        'startConnector="steps" endElement="body"',
+    )
+    (problem,) = validate(path)
+    assert problem.element == "ssd:Connection lag.steps -> body.F"
+    assert problem.message == "type mismatch: lag.steps is Int32, body.F is Real"
+
+
+def test_fmi3_output_without_dependencies_feeds_through_every_input(scene: Path):
+    # Two lags in a ring: y lists no dependencies, so y depends directly on u: a loop.
+    ring = variant(scene, "ring", 'source="msd"', 'source="Lag3.fmu"')
+    text = ring.read_text()
+    text = text.replace('<ssd:Connector name="F" kind="input"><ssc:Real unit="N"/></ssd:Connector>', "")
+    text = text.replace('<ssd:Connector name="x" kind="output"><ssc:Real unit="m"/></ssd:Connector>', "")
+    text = text.replace(
+        '<ssd:Connection startElement="body" startConnector="x" endElement="lag" endConnector="u"/>',
+        '<ssd:Connection startElement="body" startConnector="y" endElement="lag" endConnector="u"/>',
+    )
+    text = text.replace('endElement="body" endConnector="F"', 'endElement="body" endConnector="u"')
+    text = text.replace(
+        "</ssd:Connectors>\n      </ssd:Component>\n    </ssd:Elements>",
+        '<ssd:Connector name="u" kind="input"/><ssd:Connector name="y" kind="output"/>'
+        "</ssd:Connectors>\n      </ssd:Component>\n    </ssd:Elements>",
+    )
+    ring.write_text(text)
+    (problem,) = validate(ring)
+    assert problem.message.startswith(
+        "algebraic loop through direct feedthrough: body.u -> body.y -> lag.u -> lag.y -> body.u"
+    )
