@@ -93,6 +93,7 @@ class RunSummary:
     rows: int = 0
     overruns: int | None = None  # --real-time only: macro steps that ended late
     worst_lateness: float | None = None  # s
+    idle_time: float = 0.0  # s waiting for the wall clock (--real-time), not overhead
     output: str | None = None
 
     @property
@@ -105,7 +106,8 @@ class RunSummary:
         """Wall time outside FMI calls per macro step (s)."""
         if not self.macro_steps:
             return 0.0
-        return max(self.wall_time - sum(self.fmu_time.values()), 0.0) / self.macro_steps
+        busy = self.wall_time - self.idle_time - sum(self.fmu_time.values())
+        return max(busy, 0.0) / self.macro_steps
 
     def __str__(self) -> str:
         lines = [
@@ -119,7 +121,10 @@ class RunSummary:
         lines.append(f"  master overhead: {self.overhead_per_macro_step * 1e6:.1f} us per macro step")
         if self.overruns is not None:
             late_ms = 1e3 * (self.worst_lateness or 0.0)
-            lines.append(f"  real time: {self.overruns} frame overruns, worst lateness {late_ms:.3f} ms")
+            lines.append(
+                f"  real time: {self.overruns} frame overruns, worst lateness {late_ms:.3f} ms, "
+                f"{self.idle_time:.3f} s waiting for the clock"
+            )
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")
         return "\n".join(lines)

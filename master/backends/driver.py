@@ -35,21 +35,22 @@ class Pacer:
         self.t0 = time.perf_counter()
         self.overruns = 0
         self.worst = 0.0  # s
+        self.idle = 0.0  # s spent waiting for the wall clock
 
     def wait(self, n_done: int) -> None:
         """After n_done macro steps: sleep until they are due, or count an overrun."""
         due = self.t0 + n_done * self.macro_step / self.factor
-        late = time.perf_counter() - due
+        now = time.perf_counter()
+        late = now - due
         if late > 0:
             self.overruns += 1
             self.worst = max(self.worst, late)
-        elif late < -2e-3:
+            return
+        if late < -2e-3:
             time.sleep(-late - 1e-3)  # sleep coarse, then spin the last millisecond for accuracy
-            while time.perf_counter() < due:
-                pass
-        else:
-            while time.perf_counter() < due:
-                pass
+        while time.perf_counter() < due:
+            pass
+        self.idle += time.perf_counter() - now
 
 
 class Progress:
@@ -122,6 +123,7 @@ def execute(
         if pacer is not None:
             summary.overruns = pacer.overruns
             summary.worst_lateness = pacer.worst
+            summary.idle_time = pacer.idle
     except SimulationError as e:
         summary.stop_reason = f"failed: {e}"
         e.summary = summary  # type: ignore[attr-defined]
