@@ -1,0 +1,133 @@
+"""Hard cases of the coupled scheme on real FMUs, checked against the linear stability analysis.
+
+The two-mass oscillator (two msd FMUs) is linear, so the analysis of master.evidence.linear
+is exact for it (tests/test_evidence_linear.py shows the runtime and the model agree to
+round-off): predicted stability limits must be the runtime's.
+"""
+
+import dataclasses
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from master.api import run
+from master.backends.component import SimulationError
+from master.evidence.bench import as_trajectory
+from master.evidence.errors import compare
+from master.evidence.linear import (
+    AB3,
+    EULER,
+    RK4,
+    SI_EULER,
+    SI_MIDPOINT,
+    largest_stable_step,
+    spectral_radius,
+)
+from master.evidence.oscillator import SET_A, TwoMass, scene, split_scheme
+from master.evidence.reference import reference
+from master.scenario.model import Stimulus
+
+# Mass 2 made stiff: eigenvalues -1 and -1000 1/s, so explicit Euler needs h < 2e-3 s there.
+STIFF = TwoMass(c2=1000.0, d2=1001.0)
+EULER_LIMIT = 2.0 / 1000.0
+
+
+@pytest.fixture(scope="module")
+def stiff_reference():
+    return reference(scene(STIFF, split="force", macro_step=Fraction(1, 10)), cache_dir=None)
+
+
+def test_explicit_euler_past_its_limit_on_the_stiff_side_is_reported_unstable():
+    h = Fraction(1, 400)  # 1.25 x the Euler limit of mass 2
+    assert spectral_radius(split_scheme(STIFF, solvers=(RK4, EULER), split="force"), float(h)) > 1.0
+    with pytest.raises(SimulationError, match=r"unstable: mass2\.\w+ at t=") as err:
+        run(scene(STIFF, split="force", macro_step=h, solvers=(RK4, EULER)))
+    assert err.value.component == "mass2" and err.value.time < 1.0
+    data = err.value.result.data  # the rows before the stop are kept, and they are numbers
+    assert len(data) > 10 and all(np.isfinite(data[n]).all() for n in data.dtype.names)
+
+
+@pytest.mark.parametrize("solver", [SI_EULER, SI_MIDPOINT])
+def test_semi_implicit_solvers_stable_ten_times_past_the_explicit_limit(solver, stiff_reference):
+    h = Fraction(1, 50)  # 10 x the Euler limit
+    assert spectral_radius(split_scheme(STIFF, solvers=(RK4, solver), split="force"), float(h)) < 1.0
+    with pytest.raises(SimulationError):
+        run(scene(STIFF, split="force", macro_step=h, solvers=(RK4, EULER)))
+    res = as_trajectory(run(scene(STIFF, split="force", macro_step=h, solvers=(RK4, solver))).data)
+    x2 = np.abs(res.values["mass2.x"])
+    n = len(x2) // 5
+    assert x2[-n:].max() < x2[:n].max()  # decays: no growing mode
+    err = compare(res, stiff_reference).worst_max
+    # semi-implicit Euler damps the stiff mode (L-stable); the midpoint rule keeps it ringing
+    # (|R| -> 1 for stiff modes): stable, but far less accurate at this step
+    assert err < (0.05 if solver == SI_EULER else 1.0)
+
+
+ORDER_TREND = dict(
+    split="force", solvers=(AB3, EULER), step_ratios=(1, 10)
+)  # mechanics AB3 at H, Euler at H/10
+
+
+@pytest.fixture(scope="module")
+def predicted_limits():
+    return [
+        largest_stable_step(split_scheme(SET_A, order=k, **ORDER_TREND), 1e-2, 2.0, rel_tol=1e-3)
+        for k in range(4)
+    ]
+
+
+def test_stability_limit_shrinks_with_extrapolation_order(predicted_limits):
+    # coupling-limited: each order roughly halves the largest stable macro step
+    assert all(b < 0.7 * a for a, b in zip(predicted_limits, predicted_limits[1:], strict=False))
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 3])
+def test_runtime_stability_limits_match_linear_analysis(order, predicted_limits):
+    h_star = predicted_limits[order]
+    below = Fraction(0.8 * h_star).limit_denominator(2000)
+    above = Fraction(1.25 * h_star).limit_denominator(2000)
+    res = run(scene(order=order, macro_step=below, stop_time=300 * below, **ORDER_TREND)).data
+    x = np.abs(res["mass1.x"])
+    assert x[-30:].max() < x[:30].max()
+    with pytest.raises(SimulationError, match="unstable"):
+        run(scene(order=order, macro_step=above, stop_time=400 * above, **ORDER_TREND))
+
+
+def test_measured_growth_per_macro_step_is_the_spectral_radius(predicted_limits):
+    h = Fraction(1.25 * predicted_limits[2]).limit_denominator(1000)
+    rho = spectral_radius(split_scheme(SET_A, order=2, **ORDER_TREND), float(h))
+    with pytest.raises(SimulationError) as err:
+        run(scene(order=2, macro_step=h, stop_time=400 * h, **ORDER_TREND))
+    x = np.abs(err.value.result.data["mass1.x"])
+    w = 20  # envelope over windows of 20 macro steps (a few oscillation periods)
+    env = np.array([x[i : i + w].max() for i in range(0, len(x) - w, w)])
+    half = len(env) // 2
+    slope = np.polyfit(w * np.arange(half, len(env)), np.log(env[half:]), 1)[0]
+    assert np.exp(slope) == pytest.approx(rho, abs=3e-3)
+
+
+@pytest.mark.parametrize("ratio", [20, 30])
+@pytest.mark.parametrize("order", [2, 3])
+def test_large_step_ratios_with_high_order_extrapolation(ratio, order):
+    ref = reference(scene(split="force", macro_step=Fraction(1, 10)), cache_dir=None)
+    cfg = dict(split="force", macro_step=Fraction(1, 20), solvers=(AB3, EULER), step_ratios=(1, ratio))
+    assert spectral_radius(split_scheme(SET_A, order=order, **{k: cfg[k] for k in ("split", "solvers")},
+                                        step_ratios=(1, ratio)), 1 / 20) < 1.0  # fmt: skip
+    err = compare(as_trajectory(run(scene(order=order, **cfg)).data), ref).worst_max
+    err0 = compare(as_trajectory(run(scene(order=0, **cfg)).data), ref).worst_max
+    assert err < err0 / 2  # extrapolation pays off at large ratios instead of destabilising
+
+
+def test_step_input_at_t0_does_not_destabilise_high_order_extrapolation():
+    step = Stimulus("mass1", "F", "step", (0.0,), (1.0,))  # force step on mass 1 at the start
+
+    def with_step(sc):
+        return dataclasses.replace(sc, stimuli=(step,))
+
+    ref = reference(with_step(scene(macro_step=Fraction(1, 10))), cache_dir=None)
+    errs = []
+    for order in range(4):
+        sc = scene(macro_step=Fraction(1, 20), order=order, solvers=(AB3, EULER), step_ratios=(1, 20))
+        errs.append(compare(as_trajectory(run(with_step(sc)).data), ref).worst_max)
+    assert max(errs[2:]) < errs[0] / 1.5 and max(errs) < 0.05
