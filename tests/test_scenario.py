@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import zipfile
 from fractions import Fraction
 from pathlib import Path
 
@@ -193,3 +194,29 @@ def test_cli_validate_prints_each_problem_without_traceback():
     assert proc.returncode == 1
     assert proc.stdout.splitlines() == [str(p) for p in validate(bad)]
     assert "Traceback" not in proc.stderr
+
+
+def test_fmu_with_invalid_model_description_is_a_problem_of_its_component(tmp_path: Path):
+    # The real msd FMU with the start value of its input F removed (FMI requires one).
+    broken = tmp_path / "nostart.fmu"
+    with zipfile.ZipFile(fmu_path("msd")) as src, zipfile.ZipFile(broken, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                at = text.index('name="F"')
+                end = text.index("</ScalarVariable>", at)
+                data = (text[:at] + re.sub(r' start="[^"]*"', "", text[at:end]) + text[end:]).encode()
+            dst.writestr(item, data)
+    scene = tmp_path / "scene.ssd"
+    scene.write_text(
+        (HERE / "step_force.ssd")
+        .read_text()
+        .replace('name="body" source="msd"', 'name="body" source="nostart.fmu"')
+    )
+    problems = validate(scene)
+    assert problems[0].element == 'ssd:Component "body"'
+    assert "cannot read the modelDescription.xml of nostart.fmu" in problems[0].message
+    assert 'Variable "F"' in problems[0].message and "has no start value" in problems[0].message
+    # the stimulus on body.F can no longer be checked; nothing else is reported
+    assert len(problems) == 1

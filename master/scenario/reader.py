@@ -2,8 +2,10 @@
 
 Passes, each reporting every problem it finds and going on where it can:
 XML syntax -> schemas (SSP 1.0 + our settings) -> components and their FMUs -> connectors ->
-connections -> settings annotation -> parameter bindings and overrides -> undriven inputs ->
-algebraic loops.
+connections -> settings annotation -> parameter bindings and overrides -> algebraic loops.
+
+Inputs that nothing drives are not reported: FMI gives every input a start value (fmpy refuses
+an FMU without one), which such an input keeps unless a binding or stimulus sets it.
 """
 
 from __future__ import annotations
@@ -93,7 +95,6 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     times = _experiment(ctx, root)
     setup = settings.read(ctx, root, system, times)
     params = bindings.read(ctx, system, overrides)
-    _undriven(ctx, setup, params)
     loops.check(ctx, links)
     if problems.items or setup is None or times is None:
         return None
@@ -311,22 +312,3 @@ def _experiment(ctx: Context, root: etree._Element) -> tuple[Fraction, Fraction]
         ctx.at(exp, f"stopTime {float(stop):g} s is not after startTime {float(start):g} s")
         return None
     return start, stop
-
-
-def _undriven(ctx: Context, setup: settings.Settings | None, params: dict[str, dict]) -> None:
-    """An input that no connection or stimulus drives keeps its start value (or a bound value);
-    without either it is an error."""
-    stimulated = {(s.component, s.variable) for s in setup.stimuli} if setup is not None else set()
-    for c in ctx.comps.values():
-        if c.info is None:
-            continue
-        for var in c.info.variables.values():
-            key = (c.name, var.name)
-            if var.causality != "input" or key in ctx.driven or key in stimulated:
-                continue
-            if var.start is None and var.name not in params.get(c.name, {}):
-                ctx.at(
-                    c.elem,
-                    f"input {var.name} is not driven by any connection or stimulus and has no start"
-                    " value: connect it, give it a stimulus or bind a value to it",
-                )
