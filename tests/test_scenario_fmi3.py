@@ -83,3 +83,21 @@ def test_fmi3_output_without_dependencies_feeds_through_every_input(scene: Path)
     assert problem.message.startswith(
         "algebraic loop through direct feedthrough: body.u -> body.y -> lag.u -> lag.y -> body.u"
     )
+
+
+def test_interpolate_inputs_only_where_the_fmu_can(scene: Path):
+    # msd declares canInterpolateInputs; an FMI 3.0 co-simulation FMU has no such capability.
+    everywhere = variant(
+        scene,
+        "interp_all",
+        '<mm:Settings macroStep="0.01">',
+        '<mm:Settings macroStep="0.01" interpolateInputs="true">',
+    )
+    lag, body = load(everywhere).components
+    assert (lag.interpolate_inputs, body.interpolate_inputs) == (False, True)
+    forced = variant(
+        scene, "interp_lag", 'name="lag" stepRatio="2"', 'name="lag" stepRatio="2" interpolateInputs="true"'
+    )
+    (problem,) = validate(forced)
+    assert problem.element == 'mm:Component "lag"'
+    assert "Lag3.fmu cannot interpolate inputs" in problem.message

@@ -148,13 +148,12 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         seen[name] = ce
     for name, comp in ctx.comps.items():
         ce = seen.get(name)
-        get = ce.get if ce is not None else (lambda _a, _d=None: _d)
+        attrs = dict(ce.attrib) if ce is not None else {}
         s.step_ratio[name] = _ratio(ctx, ce, s.macro_step) if ce is not None else 1
-        s.extrapolation_order[name] = (
-            _int(get("extrapolationOrder")) if get("extrapolationOrder") else default_order
-        )
+        order = _int(attrs.get("extrapolationOrder"))
+        s.extrapolation_order[name] = default_order if order is None else order
         can = comp.info is not None and comp.info.can_interpolate_inputs
-        asked = _bool(get("interpolateInputs"))
+        asked = _bool(attrs.get("interpolateInputs"))
         if asked and comp.info is not None and not can:
             ctx.at(
                 ce,
@@ -162,8 +161,8 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
         # The global default only applies where the FMU can; an explicit request must be honoured.
         s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
-        if get("group") is not None:
-            s.group[name] = get("group")
+        if "group" in attrs:
+            s.group[name] = attrs["group"]
 
 
 def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
