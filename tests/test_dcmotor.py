@@ -39,13 +39,12 @@ def motor():
 
 
 class Slave:
-    """The motor FMU through Co-Simulation with parameters and inputs set by name."""
+    """An FMU through Co-Simulation with parameters (Real or Integer) and inputs set by name."""
 
-    def __init__(
-        self, path: Path, params: dict[str, float], solver: int, integers: dict[str, int] | None = None
-    ) -> None:
+    def __init__(self, path: Path, params: dict[str, float | int], solver: int) -> None:
         md = read_model_description(str(path))
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        kinds = {v.name: v.type for v in md.modelVariables}
         self.dir = extract(str(path))
         self.f = FMU2Slave(
             guid=md.guid,
@@ -55,9 +54,11 @@ class Slave:
         )
         self.f.instantiate()
         self.f.setupExperiment(startTime=0.0)
-        ints = {"solver": solver, **(integers or {})}
+        ints = {"solver": solver} | {
+            k: int(v) for k, v in params.items() if kinds[k] in ("Integer", "Enumeration")
+        }
         self.f.setInteger([self.vr[k] for k in ints], list(ints.values()))
-        self.set(params)
+        self.set({k: v for k, v in params.items() if k not in ints})
         self.f.enterInitializationMode()
         self.f.exitInitializationMode()
         self.t = 0.0
@@ -222,7 +223,8 @@ def test_closed_loop_co_simulation_settles_at_the_set_points(motor, controller):
     params, z_ref = controller
     off = np.radians([3.0, -3.0, 3.0])
     arm_path = fmu_path("manipulator")
-    arm = Slave(arm_path, {f"q{k + 1}_0": pp.Q_REF[k] + off[k] for k in range(3)}, AB3, {"actuation": 0})
+    start = {f"q{k + 1}_0": pp.Q_REF[k] + off[k] for k in range(3)}
+    arm = Slave(arm_path, pp.arm_parameters() | start, AB3)
     start_i = {f"i{k}": params[f"i_ref{k}"] for k in (1, 2, 3)}
     mot = Slave(motor, {**params, **start_i}, SI_EULER)
     names = ["q1", "q2", "q3", "qd1", "qd2", "qd3"]

@@ -1,12 +1,13 @@
 """Feedback gains of the DC-motor arm (paper Sec. 4.2, eq. 13) by pole placement.
 
-The arm (fmus/manipulator, joint torques: actuation = 0) and the three motors (fmus/dcmotor)
-are coupled through their Model Exchange interfaces into one system z' = F(z, u) with
-z = (q1..q3 rad, qd1..qd3 rad/s, i1..i3 A) and u = the motor voltages w_ext (V).  At the
-set point q* = (0, 45, 300) degrees, qd* = 0, the holding currents i* balance gravity:
-i*_k = tau*_k / Kt_k where tau* makes the joint accelerations vanish; the motors add the
-voltage R i* that keeps them flowing, so z* is an exact equilibrium.  F is linearised
-there by central differences, A = dF/dz, B = dF/du, and scipy.signal.place_poles gives K
+The arm (fmus/manipulator with models/mechanism/table3.json: Table 3, joint torques) and
+the three motors (fmus/dcmotor) are coupled through their Model Exchange interfaces into
+one system z' = F(z, u), z = (q1..q3 rad, qd1..qd3 rad/s, i1..i3 A), u = the motor
+voltages w_ext (V).  At the set point q* = (0, 45, 300) degrees, qd* = 0, the holding
+currents i* balance gravity: i*_k = tau*_k / Kt_k where tau* makes the joint
+accelerations vanish; the motors add the voltage R i* that keeps them flowing, so z* is
+an exact equilibrium.  F is linearised there by central differences, A = dF/dz,
+B = dF/du, and scipy.signal.place_poles gives K
 with eig(A - B K) = POLES.  The gains, set points and holding currents are written to
 controller.ssv (SSP 1.0 ParameterValues) beside this file.
 
@@ -16,6 +17,7 @@ Run:  /work/venv/bin/python models/dc-motor-arm/place_poles.py
 from __future__ import annotations
 
 import ctypes
+import json
 import shutil
 import sys
 import warnings
@@ -29,6 +31,7 @@ from scipy.signal import place_poles
 
 HERE = Path(__file__).resolve().parent
 SSV_PATH = HERE / "controller.ssv"
+ARM_PARAMETERS = HERE.parent / "mechanism" / "table3.json"  # the arm of Table 3, joint torques
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 
 Q_REF = np.radians([0.0, 45.0, 300.0])  # rad, the paper's set point
@@ -110,7 +113,7 @@ class CoupledArm:
     """
 
     def __init__(self, manipulator: Path, motor: Path, motor_parameters: dict[str, float]) -> None:
-        self.arm = MeFmu(manipulator, {"actuation": 0}, "arm")
+        self.arm = MeFmu(manipulator, arm_parameters(), "arm")
         self.motor = MeFmu(motor, motor_parameters, "motors")
         if self.arm.n != 6 or self.motor.n != 3:
             raise ValueError(f"expected 6 arm states and 3 motor states, got {self.arm.n} and {self.motor.n}")
@@ -143,13 +146,21 @@ class CoupledArm:
         self.motor.close()
 
 
+def arm_parameters() -> dict[str, float | int]:
+    """The scene's manipulator parameters (models/mechanism/table3.json), with joint torques."""
+    params = json.loads(ARM_PARAMETERS.read_text(encoding="utf-8"))
+    if params.get("actuation", 0) != 0:
+        raise ValueError(f"{ARM_PARAMETERS}: actuation must be 0 (joint torques) for the motors")
+    return params
+
+
 def holding_torques(manipulator: Path, q_ref: np.ndarray = Q_REF) -> np.ndarray:
     """Joint torques (N m) that hold the arm at rest at q_ref: qdd(q_ref, 0, tau) = 0.
 
     qdd is affine in tau (M qdd = tau - g(q)), so one Newton step from tau = 0 with a
     difference quotient of unit torque steps is exact up to rounding; a second one polishes.
     """
-    arm = MeFmu(manipulator, {"actuation": 0}, "arm")
+    arm = MeFmu(manipulator, arm_parameters(), "arm")
     try:
         effort = arm.refs(["effort1", "effort2", "effort3"])
         arm.set_states(np.concatenate([q_ref, np.zeros(3)]))
