@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import math
 import statistics
 import sys
 from dataclasses import dataclass
@@ -71,6 +72,7 @@ class Profile:
     base: Config  # the central dual-rate configuration the one-factor sweeps vary
     ratios: tuple[int, ...] = (1, 2, 5, 10, 20)
     stop_time: Fraction | None = None  # None: the scene's
+    unstable_step: Fraction | None = None  # a single-rate step past the stability limit (quick sweep)
 
 
 F = Fraction
@@ -101,6 +103,7 @@ PROFILES: dict[str, Profile] = {
         single_steps=(F(1, 400), F(1, 200), F(1, 100), F(1, 50)),
         macro_steps=(F(1, 50), F(1, 20), F(1, 10)),
         base=Config("dual-rate", F(1, 20), ratio=5, order=2),
+        unstable_step=F(1, 2),
     ),
 }
 
@@ -118,13 +121,16 @@ def configurations(p: Profile, quick: bool = False) -> list[Config]:
     """The sweep: the full one for the docs, or a handful of runs (`quick`) for tests."""
     b = p.base
     if quick:
-        return [
+        out = [
             p.baseline,
             dataclasses.replace(p.baseline, macro_step=p.single_steps[-1]),
             b,
             dataclasses.replace(b, ratio=p.ratios[-1], order=3),
             dataclasses.replace(b, family="control-solver", ctrl_solver=SI_MIDPOINT, ratio=1),
         ]
+        if p.unstable_step is not None:
+            out.append(dataclasses.replace(p.baseline, macro_step=p.unstable_step))
+        return out
     out = [Config("single-rate", h) for h in p.single_steps]
     out += [dataclasses.replace(b, macro_step=h, ratio=r) for h in p.macro_steps for r in p.ratios]
     out += [dataclasses.replace(b, family="order", order=k) for k in range(4) if k != b.order]
@@ -169,9 +175,15 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         components=tuple(comps),
         connections=conns,
         macro_step=c.macro_step,
-        record_interval=p.record_interval,
+        record_interval=_lcm(p.record_interval, c.macro_step),
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
     )
+
+
+def _lcm(a: Fraction, b: Fraction) -> Fraction:
+    """Least common multiple of two positive rationals (s)."""
+    num = a.numerator * b.numerator // math.gcd(a.numerator, b.numerator)
+    return Fraction(num, math.gcd(a.denominator, b.denominator))
 
 
 def base_scene(sc: Scenario, p: Profile) -> Scenario:

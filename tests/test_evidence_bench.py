@@ -1,0 +1,41 @@
+"""The work-precision bench on the two-mass oscillator scene: quick sweep through the CLI."""
+
+import csv
+from pathlib import Path
+
+import pytest
+
+from master.cli import main
+from master.evidence.bench import PROFILES, Config, Row, configurations, pareto, speedup
+
+SCENE = Path(__file__).resolve().parents[1] / "docs" / "evidence" / "oscillator" / "oscillator.ssd"
+
+
+def test_quick_bench_through_the_cli(tmp_path, capsys):
+    assert main(["bench", str(SCENE), "--quick", "--repeats", "1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "speed-up" in out
+    rows = list(csv.DictReader(open(tmp_path / "oscillator-quick.csv")))
+    assert len(rows) == len(configurations(PROFILES["oscillator"], quick=True))
+    assert (tmp_path / "oscillator-quick.png").stat().st_size > 10_000
+    stable = [r for r in rows if r["stable"] == "True"]
+    unstable = [r for r in rows if r["stable"] == "False"]
+    assert unstable and unstable[0]["macro_step_s"] == "0.5"  # kept in the table, marked
+    assert any(r["pareto"] == "True" for r in stable)
+    for r in stable:
+        # coupling errors of these steps: between 1e-4 and 5 % of the variables' range
+        assert 1e-4 < float(r["error_max"]) < 0.05
+        assert float(r["wall_time_s"]) > 0
+
+
+def _row(t: float, e: float, stable: bool = True) -> Row:
+    return Row(Config("x", 1), t, [t], e, e, "v", stable, "finished")
+
+
+def test_pareto_front_and_speedup():
+    base = _row(1.0, 0.1)
+    rows = [base, _row(0.5, 0.2), _row(0.3, 0.05), _row(0.2, 0.5), _row(0.1, 1e-3, stable=False)]
+    rows[2] = Row(Config("y", 2), 0.3, [0.3], 0.05, 0.05, "v", True, "finished")
+    assert [(r.wall_time, r.error) for r in pareto(rows)] == [(0.2, 0.5), (0.3, 0.05)]
+    b, best = speedup(rows, base.config)
+    assert b is base and best.wall_time == pytest.approx(0.3)
