@@ -368,6 +368,23 @@ def test_bad_calls_return_error_log_and_leave_the_instance_usable(fmus: dict[str
     inst.free()
 
 
+def test_debug_logging_filters_categories_but_never_errors(fmus: dict[str, Fmu]) -> None:
+    quiet = fmus["dahlquist"].instance(name="quiet").init()
+    assert quiet.messages == []  # instantiated with loggingOn = false
+    chatty = fmus["dahlquist"].instance(name="chatty")
+    chatty.slave.setDebugLogging(True, ["logInfo"])
+    chatty.init(internal_step=0.01)
+    assert chatty.messages == [
+        (0, "logInfo", "initialized at t = 0 s: 1 continuous states, solver 4, internal_step 0.01 s")
+    ]
+    chatty.slave.setDebugLogging(False, [])
+    with pytest.raises(FMICallException):
+        chatty.slave.getReal([99])
+    assert chatty.messages[-1][:2] == (3, "logError")
+    quiet.free()
+    chatty.free()
+
+
 def test_guid_mismatch_and_model_initialization_errors(fmus: dict[str, Fmu]) -> None:
     fmu = fmus["msd"]
     with pytest.raises(Exception, match="Failed to instantiate"):

@@ -129,6 +129,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         inst->core->state = ST_ERROR;
         return fmi2Error;
     }
+    layer_log(inst, LOG_INFO, "initialized at t = %g s: %d continuous states, solver %d, internal_step %g s",
+              inst->core->time, m->n_states, inst->integers[I_SOLVER], inst->reals[R_INTERNAL_STEP]);
     return fmi2OK;
 }
 
