@@ -17,7 +17,9 @@ OUR_SCHEMA = Path(__file__).resolve().parents[1] / "schemas" / "multirate-settin
 
 def parse(path: Path, shown: str, problems: Problems) -> etree._ElementTree | None:
     """Parse `path` without entities or network access; syntax errors become problems."""
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True)
+    parser = etree.XMLParser(
+        resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True, remove_pis=True
+    )
     try:
         return etree.parse(str(path), parser)
     except etree.XMLSyntaxError as err:
