@@ -196,10 +196,9 @@ def test_exclusive_fmu_runs_twice_only_in_workers():
     assert_no_children()
 
 
-def test_sigint_stops_cleanly_with_partial_results(tmp_path):
-    """Ctrl-C on the master: message with the time, rows so far written, no worker left."""
-    script = tmp_path / "run.py"
-    out = tmp_path / "out.csv"
+def long_run(tmp_path: Path) -> tuple[subprocess.Popen, list[psutil.Process], Path]:
+    """A parallel run of 1000 s in a child process; returns once its workers are busy."""
+    script, out = tmp_path / "run.py", tmp_path / "out.csv"
     here, costly = str(Path(__file__).parent), "{'c0': {'cost_us': 200}, 'c1': {'cost_us': 200}}"
     script.write_text(
         f"import sys\nfrom fractions import Fraction\nsys.path.insert(0, {here!r})\n"
@@ -210,19 +209,32 @@ def test_sigint_stops_cleanly_with_partial_results(tmp_path):
     )
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     ps = psutil.Process(proc.pid)
-    workers: list[psutil.Process] = []
     deadline = time.monotonic() + 20
-    while len(workers) < 2 and time.monotonic() < deadline:
-        workers = ps.children(recursive=True)
+    while len(ps.children()) < 3 and time.monotonic() < deadline:  # 2 workers + resource tracker
         time.sleep(0.1)
     time.sleep(0.5)  # let it compute some macro steps
-    workers = ps.children(recursive=True)  # the workers and multiprocessing's resource tracker
+    return proc, ps.children(recursive=True), out
+
+
+def test_sigint_stops_cleanly_with_partial_results(tmp_path):
+    """Ctrl-C on the master: message with the time, rows so far written, no worker left."""
+    proc, children, out = long_run(tmp_path)
+    assert len(children) >= 2
     os.kill(proc.pid, signal.SIGINT)
     stdout, _ = proc.communicate(timeout=20)
     assert "STOPPED interrupted (SIGINT)" in stdout
-    rows = out.read_text().splitlines()
-    assert len(rows) > 10
-    gone, alive = psutil.wait_procs(workers, timeout=3)
+    assert len(out.read_text().splitlines()) > 10
+    gone, alive = psutil.wait_procs(children, timeout=3)
+    assert alive == []
+
+
+def test_workers_die_with_a_killed_master(tmp_path):
+    """SIGKILL to the master (no clean-up possible there): the workers still end (PR_SET_PDEATHSIG)."""
+    proc, children, _ = long_run(tmp_path)
+    assert len(children) >= 2
+    proc.kill()
+    proc.communicate(timeout=20)
+    gone, alive = psutil.wait_procs(children, timeout=3)
     assert alive == []
 
 
