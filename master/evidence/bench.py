@@ -47,12 +47,17 @@ class Config:
     mech_solver: int = AB3
     ctrl_solver: int = EULER
     backend: str = "serial"
+    single_rate: bool = False  # every component with the mechanics solver at the macro step
+
+    def __post_init__(self) -> None:
+        if self.family == "single-rate":
+            object.__setattr__(self, "single_rate", True)
 
     @property
     def label(self) -> str:
         h = float(self.macro_step)
-        if self.family == "single-rate":
-            return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}"
+        if self.single_rate:
+            return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {self.backend}"
         return (
             f"{SOLVER_NAMES[self.mech_solver]} H={h:g} + {SOLVER_NAMES[self.ctrl_solver]} "
             f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {self.backend}"
@@ -78,7 +83,7 @@ class Profile:
 F = Fraction
 PROFILES: dict[str, Profile] = {
     "hydraulic-manipulator": Profile(
-        mechanics=("manipulator",),
+        mechanics=("mechanics",),
         control=("hydraulics",),
         record_interval=F(1, 100),
         baseline=Config("single-rate", F(2, 10000)),
@@ -157,7 +162,7 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     """The scene with the configuration's steps, ratios, orders and solvers."""
     comps = []
     for comp in sc.components:
-        ctrl = comp.name in p.control and c.family != "single-rate"
+        ctrl = comp.name in p.control and not c.single_rate
         solver = c.ctrl_solver if ctrl else c.mech_solver
         params = {**comp.parameters, "solver": solver, "internal_step": 0.0}
         comps.append(
@@ -276,7 +281,7 @@ def write_csv(rows: list[Row], path: Path) -> None:
         for r in rows:
             c = r.config
             ctrl_step = float(c.macro_step) / c.ratio
-            ctrl = SOLVER_NAMES[c.ctrl_solver] if c.family != "single-rate" else ""
+            ctrl = SOLVER_NAMES[c.ctrl_solver] if not c.single_rate else ""
             w.writerow(
                 [c.family, c.label, c.backend, f"{float(c.macro_step):g}", f"{ctrl_step:g}", c.ratio, c.order,
                  SOLVER_NAMES[c.mech_solver], ctrl,
