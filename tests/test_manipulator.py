@@ -306,3 +306,10 @@ def test_bad_parameters_are_named(fmu: dict, change: dict, words: list[str]) -> 
         assert all(w in text for w in words), text
     finally:
         me.free()
+
+
+def test_fmu_defaults_are_table3(fmu: dict) -> None:
+    """The start values in the C table are exactly models/mechanism's table3() set."""
+    starts = {v.name: v.start for v in fmu["md"].modelVariables}
+    for name, value in parameters.table3().items():
+        assert float(starts[name]) == pytest.approx(value, rel=1e-15, abs=1e-15), name
