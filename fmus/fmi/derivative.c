@@ -33,7 +33,7 @@ static int evaluate(Instance *inst, const fmi2ValueReference unknown[], size_t n
     for (size_t j = 0; j < n_known; j++)
         inst->reals[m->variables[known[j]].slot] = inst->fd_seed_base[j] + eps * seed[j];
     gather_states(inst, inst->x);
-    rc |= m->derivatives(inst, t, inst->x, inst->dx) != MODEL_OK;
+    if (m->n_states > 0) rc |= m->derivatives(inst, t, inst->x, inst->dx) != MODEL_OK;
     for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
     if (m->outputs) rc |= m->outputs(inst, t, inst->x) != MODEL_OK;
     for (size_t i = 0; i < n_unknown; i++) out[i] = inst->reals[m->variables[unknown[i]].slot];

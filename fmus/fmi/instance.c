@@ -181,9 +181,30 @@ void mark_dirty(Instance *inst) {
     inst->core->derivatives_dirty = 1;
 }
 
+void note_set(Instance *inst, const fmi2ValueReference vr[], size_t nvr) {
+    mark_dirty(inst);
+    if (inst->core->state != ST_INITIALIZATION) return;
+    for (size_t i = 0; i < nvr; i++)
+        if (inst->model->variables[vr[i]].causality != C_INPUT) inst->core->initialized = 0;
+}
+
+int run_initialize(Instance *inst, const char *function) {
+    const ModelDef *m = inst->model;
+    if (inst->core->initialized) return 0;
+    if (m->initialize && m->initialize(inst) != MODEL_OK) {
+        layer_log(inst, LOG_ERROR, "%s: model initialization failed%s", function, model_error_suffix(inst));
+        return 1;
+    }
+    inst->core->initialized = 1;
+    return 0;
+}
+
 int refresh(Instance *inst, int derivatives, const char *function) {
     const ModelDef *m = inst->model;
     Core *c = inst->core;
+    if (c->state == ST_INITIALIZATION && (c->outputs_dirty || (derivatives && c->derivatives_dirty)) &&
+        run_initialize(inst, function))
+        return 1;
     if (c->outputs_dirty) {
         gather_states(inst, inst->x);
         if (m->outputs && m->outputs(inst, c->time, inst->x) != MODEL_OK) {
@@ -193,7 +214,7 @@ int refresh(Instance *inst, int derivatives, const char *function) {
         }
         c->outputs_dirty = 0;
     }
-    if (derivatives && c->derivatives_dirty) {
+    if (derivatives && c->derivatives_dirty && m->n_states > 0) {
         gather_states(inst, inst->x);
         c->n_rhs++;
         if (m->derivatives(inst, c->time, inst->x, inst->dx) != MODEL_OK) {

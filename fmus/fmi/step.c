@@ -80,7 +80,7 @@ fmi2Status do_step(Instance *inst, double t, double H) {
         inst->input_values[i] = inst->reals[m->variables[inst->real_input_vr[i]].slot];
     c->comm_point = t;
     gather_states(inst, inst->x);
-    for (long long j = 0; j < steps && rc == 0; j++) {
+    for (long long j = 0; j < steps && rc == 0 && n > 0; j++) {
         /* Substep times from the integer j: no accumulated drift. */
         double s = t + (double)j * h;
         rc = solver_step(kind, inst->memory, inst->work, n, rhs_with_inputs, m->jacobian ? jac_with_inputs : NULL,
