@@ -301,3 +301,36 @@ def test_unloaded_piston_speed_per_mm_of_spool(fmu):
         np.testing.assert_allclose(dp[1::2], -dp[0::2])  # the other chamber drains alike
     finally:
         inst.close()
+
+
+def test_holding_pressures_hold_the_table2_arm_at_rest(fmu):
+    """models/hydraulic-manipulator/hydraulics.ssv is what its script computes today (forces
+    whose arm accelerations are below 1e-9, checked there), and with these start pressures
+    and closed valves the hydraulics FMU puts out exactly those forces and stays put."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    from lxml import etree
+
+    scene = Path(__file__).resolve().parents[1] / "models" / "hydraulic-manipulator"
+    spec = importlib.util.spec_from_file_location("holding_pressures", scene / "holding_pressures.py")
+    hp = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hp)
+    ns = {"ssv": hp.SSV_NS}
+    root = etree.parse(str(scene / "hydraulics.ssv")).getroot()
+    stored = {
+        p.get("name"): float(p.find("ssv:Real", ns).get("value"))
+        for p in root.iterfind(".//ssv:Parameter", ns)
+    }
+    arm_params = json.loads(hp.ARM_PARAMETERS.read_text(encoding="utf-8"))
+    forces = hp.holding_forces(fmu_path("manipulator"), arm_params)
+    assert stored == pytest.approx(hp.pressures(forces), rel=1e-9)
+
+    inst = Instance(fmu, "me", stored)
+    try:
+        np.testing.assert_allclose(inst.get(["force1", "force2", "force3"]), forces, rtol=1e-9, atol=1e-6)
+        assert np.all(inst.rhs(pressures(inst)) == 0)  # closed valves, pistons still
+        assert abs(forces[1]) > 1e3  # the shoulder cylinder really carries the arm
+    finally:
+        inst.close()

@@ -302,7 +302,7 @@ def write_ssv(path: Path, params: dict[str, float]) -> None:
     ]
     for name, value in params.items():
         lines.append(
-            f'    <ssv:Parameter name={quoteattr(name)}><ssv:Real value="{value!r}"/></ssv:Parameter>'
+            f'    <ssv:Parameter name={quoteattr(name)}><ssv:Real value="{float(value)!r}"/></ssv:Parameter>'
         )
     lines += ["  </ssv:Parameters>", "</ssv:ParameterSet>", ""]
     path.write_text("\n".join(lines), encoding="utf-8")
