@@ -109,6 +109,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     GUARD("fmi2EnterInitializationMode", S_INST);
     inst->core->state = ST_INITIALIZATION;
+    inst->core->initialized = 0;
     mark_dirty(inst);
     return fmi2OK;
 }
@@ -116,9 +117,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     GUARD("fmi2ExitInitializationMode", S_INIT);
     const ModelDef *m = inst->model;
-    if (m->initialize && m->initialize(inst) != MODEL_OK) {
-        layer_log(inst, LOG_ERROR, "fmi2ExitInitializationMode: model initialization failed%s",
-                  model_error_suffix(inst));
+    if (run_initialize(inst, "fmi2ExitInitializationMode")) {
         inst->core->state = ST_ERROR;
         return fmi2Error;
     }
@@ -241,7 +240,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     GUARD("fmi2SetReal", S_SET);
     if (!check_settable(inst, "fmi2SetReal", vr, nvr, T_MASK_REAL, value)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) inst->reals[inst->model->variables[vr[i]].slot] = value[i];
-    mark_dirty(inst);
+    note_set(inst, vr, nvr);
     return fmi2OK;
 }
 
@@ -252,7 +251,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
         if (!check_settable(inst, "fmi2SetInteger", vr + i, 1, T_MASK_INTEGER, &d)) return fmi2Error;
     }
     for (size_t i = 0; i < nvr; i++) inst->integers[inst->model->variables[vr[i]].slot] = value[i];
-    mark_dirty(inst);
+    note_set(inst, vr, nvr);
     return fmi2OK;
 }
 
@@ -260,7 +259,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
     GUARD("fmi2SetBoolean", S_SET);
     if (!check_settable(inst, "fmi2SetBoolean", vr, nvr, T_MASK_BOOLEAN, NULL)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) inst->booleans[inst->model->variables[vr[i]].slot] = value[i] != fmi2False;
-    mark_dirty(inst);
+    note_set(inst, vr, nvr);
     return fmi2OK;
 }
 
@@ -276,7 +275,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     }
     for (size_t i = 0; i < nvr; i++)
         strcpy((char *)model_string(inst, inst->model->variables[vr[i]].slot), value[i]);
-    mark_dirty(inst);
+    note_set(inst, vr, nvr);
     return fmi2OK;
 }
 

@@ -44,6 +44,7 @@ typedef struct {
     int outputs_dirty;      /* inputs, parameters or states changed since MODEL.outputs ran */
     int derivatives_dirty;  /* ... since the derivative slots were written */
     int have_input_derivatives; /* some fmi2SetRealInputDerivatives since the last doStep */
+    int initialized;        /* Initialization Mode: MODEL.initialize ran and only inputs changed since */
 } Core;
 
 struct Instance {
@@ -111,9 +112,15 @@ const char *not_settable_reason(const Instance *inst, const Variable *v);
 void gather_states(Instance *inst, double *x);       /* state slots -> x */
 void scatter_states(Instance *inst, const double *x); /* x -> state slots */
 void mark_dirty(Instance *inst);
+/* After fmi2SetXXX of vr[0..nvr): outputs are stale; in Initialization Mode a changed
+ * parameter or start value also means MODEL.initialize must run again. */
+void note_set(Instance *inst, const fmi2ValueReference vr[], size_t nvr);
+/* MODEL.initialize unless Core.initialized says it already ran; 0 on success (logs on failure). */
+int run_initialize(Instance *inst, const char *function);
 /* Bring outputs (and derivative slots when `derivatives`) up to date; 0 on success.
- * MODEL.initialize runs only at fmi2ExitInitializationMode, so in Initialization
- * Mode the values come from the slots as set so far. */
+ * In Initialization Mode MODEL.initialize runs first unless it already ran for the
+ * parameters and start values as they are (so initial outputs are the model's, and a
+ * model with side effects in initialize sees one call per set of values). */
 int refresh(Instance *inst, int derivatives, const char *function);
 /* 0 if every state and Real output is finite, else logs the first bad one and returns 1. */
 int check_finite(Instance *inst, const char *function);
