@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from fractions import Fraction
 from pathlib import Path
@@ -163,8 +164,9 @@ CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested"
 
 
 @pytest.mark.parametrize("mode", [1, 2, 3, 4], ids=["segfault", "hang", "abort", "error"])
-def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path):
+def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path, monkeypatch):
     """c1 misbehaves from t = 0.5 s: the run stops there, rows up to the last macro step are kept."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     sc = lags(2, params={"c1": {"mode": mode, "at_time": 0.5}})
     out = tmp_path / "out.csv"
     t0 = time.monotonic()
@@ -183,6 +185,7 @@ def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path):
     assert "failed" in e.result.summary.stop_reason
     rows = out.read_text().splitlines()
     assert len(rows) == 1 + len(data)
+    assert list(tmp_path.glob("master-parallel-*")) == []  # the dead worker's extracted FMU too
     assert_no_children()
 
 
@@ -207,7 +210,8 @@ def long_run(tmp_path: Path) -> tuple[subprocess.Popen, list[psutil.Process], Pa
         f"try:\n    api.run(sc, backend='parallel', output={str(out)!r})\n"
         "except api.SimulationError as e:\n    print('STOPPED', e, flush=True)\n"
     )
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    env = {**os.environ, "TMPDIR": str(tmp_path)}  # what a killed master cannot remove stays in tmp_path
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
     ps = psutil.Process(proc.pid)
     deadline = time.monotonic() + 20
     while len(ps.children()) < 3 and time.monotonic() < deadline:  # 2 workers + resource tracker
@@ -224,6 +228,7 @@ def test_sigint_stops_cleanly_with_partial_results(tmp_path):
     stdout, _ = proc.communicate(timeout=20)
     assert "STOPPED interrupted (SIGINT)" in stdout
     assert len(out.read_text().splitlines()) > 10
+    assert list(tmp_path.glob("master-parallel-*")) == []  # extracted FMUs removed
     gone, alive = psutil.wait_procs(children, timeout=3)
     assert alive == []
 
