@@ -136,7 +136,7 @@ enum {
     CYL_POINT(n, C_AX, "ax", ax), CYL_POINT(n, C_AY, "ay", ay), CYL_POINT(n, C_AZ, "az", az),            \
     CYL_POINT(n, C_BX, "bx", bx), CYL_POINT(n, C_BY, "by", by), CYL_POINT(n, C_BZ, "bz", bz)
 
-/* Defaults: Table 3 (models/mechanism/tables.py, set "table3"). */
+/* Defaults: Table 3 (models/mechanism/parameters.py, table3()). */
 static const Variable VARIABLES[N_VARIABLES] = {
     COMMON_VARIABLES(SOLVER_AB3, 0.0),
     IPARAM("actuation", VR_ACTUATION, 0, 0, 1,
