@@ -27,9 +27,15 @@ class BadValue(Exception):
 def settable(var: Var) -> str | None:
     """Why `var` cannot take a parameter binding, or None if it can.
 
-    SSP 1.0 / FMI: parameters and inputs that are not constant and whose start is not calculated."""
-    if var.causality not in SETTABLE_CAUSALITIES:
-        return f"it has causality {var.causality}; only parameters and inputs take values"
+    SSP 1.0 / FMI: parameters and inputs that are not constant and whose start is not calculated,
+    and outputs with initial="exact" or "approx" (start values of states, such as a pressure
+    that is both a state and an output; FMI lets them be set before initialisation)."""
+    start_output = var.causality == "output" and var.initial in ("exact", "approx")
+    if var.causality not in SETTABLE_CAUSALITIES and not start_output:
+        return (
+            f"it has causality {var.causality}; only parameters, inputs and outputs with"
+            ' initial="exact" or "approx" take values'
+        )
     if var.variability == "constant":
         return "it is a constant"
     if var.initial == "calculated":
