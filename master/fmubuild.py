@@ -180,6 +180,16 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
             problems.append(f"{label}: start value {v['start']} is not finite")
     n = desc["n_states"]
     real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
+    state_vrs = {real_vr.get(s) for s in desc["state_slots"]}
+    for vr, v in enumerate(variables):
+        for dep in (v["dependencies"] or "").split():
+            if dep.isdigit() and int(dep) < len(variables):
+                known = variables[int(dep)]
+                if known["causality"] != "input" and int(dep) not in state_vrs:
+                    problems.append(
+                        f'variable {vr} "{v["name"]}": dependency {dep} ("{known["name"]}") '
+                        "is neither an input nor a continuous state"
+                    )
     for i in range(n):
         s, d = desc["state_slots"][i], desc["derivative_slots"][i]
         if s not in real_vr:

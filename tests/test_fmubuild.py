@@ -90,6 +90,18 @@ def test_inconsistent_table_is_reported_with_file_and_variable(sandbox: Path) ->
     assert 'variable 3 "lambda": duplicate name' in str(info.value)
 
 
+def test_dependency_on_a_parameter_is_reported(sandbox: Path) -> None:
+    model = sandbox / "dahlquist" / "model.c"
+    model.write_text(
+        model.read_text().replace('"derivative of y", VR_Y, "4"', '"derivative of y", VR_Y, "2 4"')
+    )
+    with pytest.raises(fmubuild.FmuBuildError) as info:
+        fmubuild.describe("dahlquist")
+    assert 'variable 5 "der(y)": dependency 2 ("lambda") is neither an input nor a continuous state' in str(
+        info.value
+    )
+
+
 def test_stale_xml_is_refused_until_regenerated(sandbox: Path) -> None:
     xml = sandbox / "dahlquist" / "modelDescription.xml"
     model = sandbox / "dahlquist" / "model.c"
