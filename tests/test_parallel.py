@@ -189,6 +189,25 @@ def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path, monke
     assert_no_children()
 
 
+@pytest.mark.parametrize(
+    "params",
+    [{"c1": {"mode": 7}}, {"c1": {"no_such": 1.0}}, {"c1": {"mode": 4, "at_time": 0.25}}],
+    ids=["out-of-range", "unknown-variable", "fmi2Error"],
+)
+def test_errors_read_as_in_the_serial_backend(params):
+    """Errors raised by the component code cross the process boundary word for word."""
+    sc = lags(2, params=params)
+    errors = []
+    for backend in ("serial", "parallel"):
+        with pytest.raises(Exception) as info:
+            api.run(sc, backend=backend)
+        errors.append(info.value)
+    assert type(errors[0]) is type(errors[1])
+    assert str(errors[0]) == str(errors[1])
+    assert "c1" in str(errors[1])
+    assert_no_children()
+
+
 def test_exclusive_fmu_runs_twice_only_in_workers():
     """An FMU allowing one instance per process: serial fails, one worker per instance works."""
     sc = lags(2, params={"c0": {"exclusive": True}, "c1": {"exclusive": True}})

@@ -27,7 +27,7 @@ from master.backends.component import ComponentRunner, SimulationError, open_fmu
 from master.backends.shm import SharedArrays
 from master.backends.worker import NOP, WorkerFailure, WorkerPool
 from master.coupling import History
-from master.fmu import read_description, variables_of
+from master.fmu import FmuError, read_description, variables_of
 from master.schedule import Plan
 
 # worker commands (see _GroupTask.command and _TrialTask.command)
@@ -148,8 +148,6 @@ class _GroupTask:
     @staticmethod
     def _exit_init(r: ComponentRunner) -> None:
         """As the serial backend does after its sweeps."""
-        from master.fmu import FmuError
-
         try:
             r.fmu.exit_initialization()
             r.out.get()
@@ -214,8 +212,10 @@ class ParallelBackend:
         ]
         try:
             self.pool = WorkerPool(tasks, start_method=self.start_method, step_timeout=self.step_timeout)
-        except WorkerFailure as e:
-            raise self._error(e, float(self.plan.scenario.start_time), "while starting") from None
+        except WorkerFailure as e:  # loading is not simulating: the serial backend raises FmuError here
+            raise FmuError(
+                e.cause if e.raised else f"component {e.component}: {e.cause} while loading"
+            ) from None
 
     def initialize(self) -> None:
         """The serial backend's initialisation, component by component across the workers."""
@@ -267,8 +267,8 @@ class ParallelBackend:
     def _error(self, e: WorkerFailure, t: float, when: str) -> SimulationError:
         """A SimulationError from a worker failure; the worker's own message if it raised one."""
         comp = e.component or "?"
-        if e.time is not None:  # the component code raised a SimulationError: keep its words
-            return SimulationError(e.cause, comp, e.time)
+        if e.raised:  # the component code raised: keep its words (and its time, if it said)
+            return SimulationError(e.cause, comp, t if e.time is None else e.time)
         return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
 
     def record(self, n: int, row: np.ndarray) -> None:
@@ -300,8 +300,6 @@ class ParallelBackend:
 
 def _state_call(r: ComponentRunner, n: int, fn, *args):
     """An FMU state call of the start-up, failures named as SerialBackend names them."""
-    from master.fmu import FmuError
-
     try:
         return fn(*args)
     except FmuError as e:

@@ -50,12 +50,16 @@ class Task(Protocol):
 
 
 class WorkerFailure(RuntimeError):
-    """A worker failed: `component` (name or None), `cause`; `time` (s) if the failing code said."""
+    """A worker failed: `component` (name or None), `cause`; `time` (s) if the failing code said.
 
-    def __init__(self, component: str | None, cause: str, time: float | None = None):
+    raised: the task raised an exception whose message is `cause` (else: crash or hang).
+    """
+
+    def __init__(self, component: str | None, cause: str, time: float | None = None, raised: bool = False):
         self.component = component
         self.cause = cause
         self.time = time
+        self.raised = raised
         where = f"component '{component}'" if component else "a worker"
         super().__init__(f"{where}: {cause}")
 
@@ -209,7 +213,7 @@ class WorkerPool:
     def _check(self, i: int) -> None:
         if self.control["state"][i] == FAILED:
             t = float(self.control["err_time"][i])
-            raise self._failure(i, self._message(i), None if np.isnan(t) else t)
+            raise self._failure(i, self._message(i), None if np.isnan(t) else t, raised=True)
 
     def _message(self, i: int) -> str:
         raw = bytes(self.control["msg"][i])
@@ -220,8 +224,8 @@ class WorkerPool:
         k = int(self.control["where"][i])
         return names[k] if 0 <= k < len(names) else (names[0] if len(names) == 1 else None)
 
-    def _failure(self, i: int, cause: str, t: float | None = None) -> WorkerFailure:
-        return WorkerFailure(self._component(i), cause, t)
+    def _failure(self, i: int, cause: str, t: float | None = None, raised: bool = False) -> WorkerFailure:
+        return WorkerFailure(self._component(i), cause, t, raised)
 
     def close(self) -> None:
         """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory."""
