@@ -140,14 +140,24 @@ def test_dahlquist_cs_and_me_match_exponential(fmus: dict[str, Fmu]) -> None:
     assert np.max(np.abs(me["y"] - 1.5 * np.exp(-2.0 * me["time"]))) < 1e-6
 
 
-def test_internal_steps_follow_the_stability_function(fmus: dict[str, Fmu]) -> None:
-    """Euler with n internal steps per doStep multiplies y by (1 + lambda h)^n each step."""
-    inst = fmus["dahlquist"].instance().init(solver=EULER, internal_step=0.025, **{"lambda": -3.0})
+STABILITY_FUNCTIONS = {
+    EULER: lambda z: 1 + z,
+    RK4: lambda z: 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24,
+    SEMI_EULER: lambda z: 1 / (1 - z),  # exact Jacobian from the model: L-stable
+}
+
+
+@pytest.mark.parametrize("solver", sorted(STABILITY_FUNCTIONS))
+@pytest.mark.parametrize("lam", [-3.0, -100.0])
+def test_internal_steps_follow_the_stability_function(fmus: dict[str, Fmu], solver: int, lam: float) -> None:
+    """n internal steps of h per doStep multiply y by R(lambda h)^n."""
+    inst = fmus["dahlquist"].instance().init(solver=solver, internal_step=0.025, **{"lambda": lam})
+    R = STABILITY_FUNCTIONS[solver](lam * 0.025)
     t, H = 0.0, 0.1
     for k in range(1, 11):
         inst.slave.doStep(t, H)
         t += H
-        assert inst.get("y")[0] == pytest.approx((1 - 3.0 * 0.025) ** (4 * k), rel=1e-13)
+        assert inst.get("y")[0] == pytest.approx(R ** (4 * k), rel=1e-12)
     # the FMU's time is exactly t + H of the master's arguments, no accumulation of its own
     assert inst.slave.getRealStatus(fmi2LastSuccessfulTime) == t
     inst.free()
