@@ -142,6 +142,17 @@ def test_multirate_ring_with_groups_bitwise_equal():
     assert np.ptp(d["c1.y"]) > 0.1
 
 
+def test_source_history_long_enough_for_a_higher_order_consumer():
+    """c0 has no inputs, c1 (k = 3) extrapolates it with order 3: c0's ring must hold k + 3 + 1
+    samples, else the source overwrites samples the consumer still reads (serial and parallel alike)."""
+    sc = lags(2, xorder=3, ratios=[1, 3], record=(("c0", "y"), ("c1", "u")))
+    d = assert_identical(dataclasses.replace(sc, connections=(Connection("c0", "y", "c1", "u"),)))
+    # the last input of macro step n is the cubic through c0.y at t_n-3H .. t_n, evaluated at
+    # t_n + 2H/3, and c0.y = -0.5 exp(-t) (RK4, h = 0.01): error of order H^4 / 24 ~ 4e-10
+    t, H = d["time"][4:], 0.01
+    assert np.max(np.abs(d["c1.u"][4:] + 0.5 * np.exp(-(t - H / 3)))) < 1e-8
+
+
 def test_gauss_seidel_levels():
     sc = lags(3, coupling="gauss-seidel", order=("c0", "c1", "c2"))
     assert levels(api.plan(sc)) == {"c0": 0, "c1": 1, "c2": 2}

@@ -91,7 +91,9 @@ class ComponentRunner:
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
         # outputs that depend directly on driven inputs need those inputs at the end of each step
         self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
-        max_order = max([lk.order for lk in links], default=0)
+        # a consumer of order p reads samples back to p before the macro step start, while this
+        # component may already have written the whole macro step: k + p + 1 samples coexist
+        max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
         self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
