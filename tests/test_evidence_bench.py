@@ -21,6 +21,9 @@ def test_quick_bench_through_the_cli(tmp_path, capsys):
     stable = [r for r in rows if r["stable"] == "True"]
     unstable = [r for r in rows if r["stable"] == "False"]
     assert unstable and unstable[0]["macro_step_s"] == "0.5"  # kept in the table, marked
+    # the linear analysis agrees: spectral radius of the macro-step map above 1 only there
+    assert float(unstable[0]["rho_linear"]) > 1.0
+    assert all(float(r["rho_linear"]) < 1.0 for r in stable)
     assert any(r["pareto"] == "True" for r in stable)
     for r in stable:
         # coupling errors of these steps: between 1e-4 and 5 % of the variables' range

@@ -11,7 +11,9 @@ Families swept (each row of the CSV is one configuration):
 Wall time is the median over repeats of the run's stepping wall time (RunSummary.wall_time);
 the error is the worst scaled max error over the recorded variables (master.evidence.errors).
 A run the runtime stops as unstable, or whose error exceeds the variables' range, is kept in
-the table and the plot as unstable.
+the table and the plot as unstable.  Each row also gives rho, the spectral radius of the
+macro-step map of the scene linearised at `Profile.linearize_at` (master.evidence.stability):
+rho > 1 predicts a growing mode.
 """
 
 from __future__ import annotations
@@ -29,7 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from master.evidence.errors import Trajectory, compare
+from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import reference
+from master.evidence.stability import linearize
 from master.scenario.model import Scenario
 
 EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
@@ -78,6 +82,7 @@ class Profile:
     ratios: tuple[int, ...] = (1, 2, 5, 10, 20)
     stop_time: Fraction | None = None  # None: the scene's
     unstable_step: Fraction | None = None  # a single-rate step past the stability limit (quick sweep)
+    linearize_at: float = 0.1  # s: operating point of the linear stability analysis
 
 
 F = Fraction
@@ -89,7 +94,9 @@ PROFILES: dict[str, Profile] = {
         baseline=Config("single-rate", F(2, 10000)),
         single_steps=(F(1, 10000), F(2, 10000), F(5, 10000), F(1, 1000)),
         macro_steps=(F(5, 10000), F(1, 1000), F(2, 1000)),
-        base=Config("dual-rate", F(1, 1000), ratio=5, order=2),
+        base=Config("dual-rate", F(1, 1000), ratio=5, order=1),
+        stop_time=F(1),
+        unstable_step=F(4, 1000),
     ),
     "dc-motor-arm": Profile(
         mechanics=("arm",),
@@ -109,6 +116,7 @@ PROFILES: dict[str, Profile] = {
         macro_steps=(F(1, 50), F(1, 20), F(1, 10)),
         base=Config("dual-rate", F(1, 20), ratio=5, order=2),
         unstable_step=F(1, 2),
+        linearize_at=0.5,
     ),
 }
 
@@ -209,6 +217,16 @@ def as_trajectory(data: np.ndarray) -> Trajectory:
     )
 
 
+def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
+    """The linearised scene with the configuration's solvers, step ratios and order."""
+    comps = []
+    for comp in lin.components:
+        ctrl = comp.name in p.control and not c.single_rate
+        comps.append(dataclasses.replace(comp, solver=c.ctrl_solver if ctrl else c.mech_solver,
+                                         step_ratio=c.ratio if ctrl else 1, substeps=1))  # fmt: skip
+    return dataclasses.replace(lin, components=tuple(comps), order=c.order)
+
+
 @dataclass
 class Row:
     """One measured configuration."""
@@ -221,6 +239,7 @@ class Row:
     worst_variable: str
     stable: bool
     status: str
+    rho: float = float("nan")  # spectral radius of the linearised scheme's macro-step map
 
 
 def measure(sc: Scenario, p: Profile, c: Config, ref: Trajectory, repeats: int) -> Row:
@@ -276,7 +295,7 @@ def write_csv(rows: list[Row], path: Path) -> None:
         w.writerow(
             ["family", "label", "backend", "macro_step_s", "control_step_s", "ratio", "order", "mech_solver",
              "control_solver", "wall_time_s", "error_max", "error_end", "worst_variable", "stable", "pareto",
-             "status"]
+             "rho_linear", "status"]
         )  # fmt: skip
         for r in rows:
             c = r.config
@@ -286,7 +305,7 @@ def write_csv(rows: list[Row], path: Path) -> None:
                 [c.family, c.label, c.backend, f"{float(c.macro_step):g}", f"{ctrl_step:g}", c.ratio, c.order,
                  SOLVER_NAMES[c.mech_solver], ctrl,
                  f"{r.wall_time:.4g}", f"{r.error:.3e}", f"{r.end_error:.3e}", r.worst_variable, r.stable,
-                 id(r) in front, r.status]
+                 id(r) in front, f"{r.rho:.6f}", r.status]
             )  # fmt: skip
 
 
@@ -334,7 +353,12 @@ def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int
     ref = reference(
         base, overrides={"record_interval": str(p.record_interval), "stop_time": str(base.stop_time)}
     )
-    rows = [measure(sc, p, c, ref, repeats) for c in configurations(p, quick)]
+    lin = linearize(apply(sc, p, p.base), t=p.linearize_at)
+    rows = []
+    for c in configurations(p, quick):
+        row = measure(sc, p, c, ref, repeats)
+        row.rho = spectral_radius(linear_scheme(lin, p, c), float(c.macro_step))
+        rows.append(row)
     stem = Path(sc.path).parent.name + ("-quick" if quick else "")
     write_csv(rows, out_dir / f"{stem}.csv")
     plot(rows, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)")
@@ -343,11 +367,10 @@ def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int
 
 def report(rows: list[Row], baseline: Config) -> str:
     """Text summary: every row, the Pareto front and the speed-up over the baseline."""
-    lines = [f"{'wall [s]':>9} {'error':>10}  stable  configuration"]
+    lines = [f"{'wall [s]':>9} {'error':>10}  stable  {'rho':>8}  configuration"]
     for r in rows:
-        lines.append(
-            f"{r.wall_time:9.4f} {r.error:10.3e}  {'yes' if r.stable else 'NO ':6}  {r.config.label}"
-        )
+        ok = "yes" if r.stable else "NO "
+        lines.append(f"{r.wall_time:9.4f} {r.error:10.3e}  {ok:6}  {r.rho:8.5f}  {r.config.label}")
     su = speedup(rows, baseline)
     if su is None:
         lines.append("baseline did not run stably: no speed-up to report")
