@@ -110,7 +110,7 @@ class _GroupTask:
         """Run one command for the components of this worker, in stepping order.
 
         OP_SWEEP a: initial sweep of component a (plan index).  OP_EXIT_INIT: leave
-        initialisation, record the start row.  OP_STEP a b: macro step a for the components of
+        initialisation mode.  OP_STEP a b: macro step a for the components of
         level b, recording if due.  Start-up (as SerialBackend.step): OP_SAVE a saves FMU
         states, OP_SNAPSHOT copies every history, OP_RELAXED a repeats macro step a from the
         saved states on that copy, OP_FREE a frees the states, OP_RECORD a records.
@@ -128,7 +128,6 @@ class _GroupTask:
                 r.initial_sweep(self.histories)
             elif op == OP_EXIT_INIT:
                 self._exit_init(r)
-                r.record(-1, rec)
             elif op == OP_STEP:
                 r.macro_step(a, self.histories)
                 if a >= self.plan.startup_steps and record_due(self.plan, a):
@@ -147,14 +146,12 @@ class _GroupTask:
 
     @staticmethod
     def _exit_init(r: ComponentRunner) -> None:
-        """As the serial backend does after its sweeps."""
+        """As the serial backend does between its two rounds of sweeps."""
         try:
             r.fmu.exit_initialization()
-            r.out.get()
         except FmuError as e:
             t = r.clock.time(0)
             raise SimulationError(f"{e} at t={t}", r.name, t) from e
-        r.history.push(0, r.out.values)
 
     def close(self) -> None:
         for r in self.runners:
@@ -222,18 +219,21 @@ class ParallelBackend:
         assert self.pool is not None
         t0 = float(self.plan.scenario.start_time)
         try:
-            for _ in range(len(self.plan.components)):
-                for k, pc in enumerate(self.plan.components):
-                    self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
+            self._sweeps()
             self.pool.run(OP_EXIT_INIT)
-            for _ in range(len(self.plan.components)):  # as SerialBackend: sweeps after leaving init too
-                for k, pc in enumerate(self.plan.components):
-                    self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
+            self._sweeps()  # as SerialBackend: sweeps in and after initialisation mode
             self.pool.run(OP_RECORD, -1)
         except WorkerFailure as e:
             raise self._error(e, t0, "during initialisation") from None
         except KeyboardInterrupt:
             raise SimulationError("interrupted (SIGINT) during initialisation", "", t0) from None
+
+    def _sweeps(self) -> None:
+        """One initial sweep per component, in stepping order, each in its own worker."""
+        assert self.pool is not None
+        for _ in range(len(self.plan.components)):
+            for k, pc in enumerate(self.plan.components):
+                self.pool.run(OP_SWEEP, k, 0, [self.worker_of[pc.name]])
 
     def step(self, n: int) -> None:
         """Advance every component through macro step n (one synchronisation per dependency level).
