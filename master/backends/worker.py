@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import multiprocessing as mp
+import os
 import signal
 import time
 import traceback
@@ -64,18 +65,22 @@ class WorkerFailure(RuntimeError):
         super().__init__(f"{where}: {cause}")
 
 
-def _die_with_parent() -> None:
-    """Ask Linux to SIGKILL this process when the process that started it dies."""
+def _die_with_parent(parent: int | None) -> None:
+    """Ask Linux to SIGKILL this process when its parent (pid `parent`, if known) dies."""
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
     except (OSError, AttributeError):
         pass  # not Linux: the master's close() still ends the workers
+    if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        os._exit(1)
 
 
-def _worker_main(index: int, factory: Callable[[], Task], control: SharedArrays, go, done) -> None:
+def _worker_main(
+    index: int, factory: Callable[[], Task], control: SharedArrays, go, done, parent: int | None
+) -> None:
     """Body of worker `index`: build the task, then step on command until STOP."""
-    _die_with_parent()
+    _die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the master's to handle
     try:
         import faulthandler
@@ -165,10 +170,11 @@ class WorkerPool:
         self.procs: list = []
         self.closed = False
         try:
+            parent = None if start_method == "forkserver" else os.getpid()  # forkserver: its server forks
             for i, (_, factory) in enumerate(tasks):
                 p = ctx.Process(
                     target=_worker_main,
-                    args=(i, factory, self.control, self.go[i], self.done[i]),
+                    args=(i, factory, self.control, self.go[i], self.done[i], parent),
                     name=f"master-worker-{'+'.join(self.names[i])}",
                     daemon=True,
                 )
