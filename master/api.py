@@ -195,8 +195,14 @@ def run(
     if plot is not None:
         from master.recorder import plot_result
 
-        plot_result(result.data, plot, title=sc.name)
+        plot_result(result.data, plot, title=sc.name, units=_units(sc, p.record))
     return result
+
+
+def _units(sc: Scenario, record: tuple[tuple[str, str], ...]) -> dict[str, str | None]:
+    """Unit of each recorded column "component.variable" from the FMUs' model descriptions."""
+    described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
+    return {f"{c}.{v}": getattr(described[c].get(v), "unit", None) for c, v in record}
 
 
 def validate(path: str | Path) -> list:

@@ -152,22 +152,39 @@ class RunResult:
             pass
 
 
-def plot_result(data: np.ndarray, png: str | Path, title: str = "", columns: list[str] | None = None) -> Path:
-    """Plot recorded columns of a structured array over "time" into a PNG file."""
+def plot_result(
+    data: np.ndarray,
+    png: str | Path,
+    title: str = "",
+    columns: list[str] | None = None,
+    units: dict[str, str | None] | None = None,
+) -> Path:
+    """Plot recorded columns of a structured array over "time" (s) into a PNG file.
+
+    With `units` (column -> unit, None for none) each unit gets its own panel, so that
+    pressures in Pa do not flatten positions in m; without, one panel holds every column.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     names = columns or [n for n in data.dtype.names if n != "time"]
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    groups: dict[str | None, list[str]] = {}
     for n in names:
-        ax.plot(data["time"], data[n], label=n)
-    ax.set_xlabel("time [s]")
-    ax.set_title(title)
-    ax.grid(True, alpha=0.3)
-    if names:
-        ax.legend(fontsize="small")
+        groups.setdefault(units.get(n) if units is not None else "", []).append(n)
+    fig, axes = plt.subplots(
+        len(groups) or 1, 1, sharex=True, squeeze=False, figsize=(8, max(4.5, 2.2 * len(groups)))
+    )
+    for ax, (unit, members) in zip(axes[:, 0], groups.items(), strict=False):
+        for n in members:
+            ax.plot(data["time"], data[n], label=n)
+        if units is not None:
+            ax.set_ylabel(f"[{unit}]" if unit else "(no unit)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[0, 0].set_title(title)
     fig.tight_layout()
     png = Path(png)
     png.parent.mkdir(parents=True, exist_ok=True)
