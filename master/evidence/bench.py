@@ -83,6 +83,7 @@ class Profile:
     stop_time: Fraction | None = None  # None: the scene's
     unstable_step: Fraction | None = None  # a single-rate step past the stability limit (quick sweep)
     linearize_at: float = 0.1  # s: operating point of the linear stability analysis
+    variables: tuple[str, ...] | None = None  # the error's variables (None: all recorded)
 
 
 F = Fraction
@@ -97,15 +98,21 @@ PROFILES: dict[str, Profile] = {
         base=Config("dual-rate", F(1, 1000), ratio=5, order=1),
         stop_time=F(1),
         unstable_step=F(4, 1000),
+        variables=tuple(f"mechanics.body6_{q}" for q in ("x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az")),
     ),
     "dc-motor-arm": Profile(
-        mechanics=("arm",),
+        mechanics=("mechanics",),
         control=("motors",),
         record_interval=F(3, 50),
         baseline=Config("single-rate", F(2, 1000)),
         single_steps=(F(5, 10000), F(1, 1000), F(2, 1000), F(3, 1000)),
         macro_steps=(F(5, 1000), F(1, 100), F(2, 100), F(3, 100)),
-        base=Config("dual-rate", F(2, 100), ratio=4, order=2),
+        base=Config("dual-rate", F(2, 100), ratio=4, order=0),
+        ratios=(1, 2, 4, 10, 20),
+        unstable_step=F(3, 1000),
+        linearize_at=0.0,
+        stop_time=F(18, 5),  # a whole number of every swept step
+        variables=tuple(f"mechanics.{q}{i}" for q in ("q", "qd") for i in (1, 2, 3)),
     ),
     "oscillator": Profile(
         mechanics=("mass1",),
@@ -261,7 +268,7 @@ def measure(sc: Scenario, p: Profile, c: Config, ref: Trajectory, repeats: int) 
             break
         times.append(res.summary.wall_time)
         if i == 0:
-            rep = compare(as_trajectory(res.data), ref)
+            rep = compare(as_trajectory(res.data), ref, list(p.variables) if p.variables else None)
             err, end, worst = rep.worst_max, rep.worst_end, rep.worst_max_variable
     stable = status == "finished" and err <= 1.0
     if status == "finished" and not stable:
@@ -374,6 +381,10 @@ def report(rows: list[Row], baseline: Config) -> str:
     su = speedup(rows, baseline)
     if su is None:
         lines.append("baseline did not run stably: no speed-up to report")
+    elif su[1].config == baseline:
+        b = su[0]
+        lines.append(f"speed-up: no configuration is faster than the baseline {b.config.label} "
+                     f"({b.wall_time:.4f} s) at its error {b.error:.3e} or better")  # fmt: skip
     else:
         b, best = su
         lines.append(
