@@ -49,13 +49,13 @@ def test_hydraulic_scene_is_stable_at_the_papers_steps(hydraulic):
 def test_hydraulic_pistons_move_as_the_valves_command(hydraulic):
     """Each piston runs in the direction of its spool, at nearly the unloaded valve speed
     v = Kv x sqrt(p_s / 2) / A (a drop of p_s / 2 over each orifice): the loads are small
-    against the supply, so within 15 %; body 6 sinks as cylinder 2 lowers the boom."""
+    against the supply, so within 5 % (measured: 1.3 %); body 6 sinks as cylinder 2 lowers the boom."""
     d = hydraulic
     t = d["time"]
     window = (t >= 1.0) & (t <= 3.0)  # past the start transient
     speeds = np.array([np.polyfit(t[window], d[f"mechanics.stroke{k}"][window], 1)[0] for k in (1, 2, 3)])
     unloaded = KV * SPOOL * math.sqrt((P_SUPPLY - P_TANK) / 2) / AREA
-    np.testing.assert_allclose(speeds, unloaded, rtol=0.15)
+    np.testing.assert_allclose(speeds, unloaded, rtol=0.05)
     assert np.all(np.sign(speeds) == np.sign(SPOOL))
     vz = d["mechanics.body6_vz"][window]
     assert vz.max() < -0.01  # m/s: sinking steadily
