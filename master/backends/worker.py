@@ -4,12 +4,14 @@ Each worker runs a `Task` (one or more components) in its own process.  Per macr
 master writes a command (op, a, b) into shared memory and releases each worker's `go`
 semaphore; each worker runs it (steps its components, publishes its outputs into shared
 arrays) and releases its `done` semaphore.  That pair of semaphores is the one
-synchronisation point per step: measured on 2 cores it costs less than a pipe round trip,
-a `multiprocessing.Barrier` or spinning on a shared counter (see benchmarks/parallel.py).
+synchronisation point per step.  A waiting process first polls its semaphore for up to
+SPIN_S (yielding the processor between polls), then sleeps: waking a sleeping process
+costs tens of microseconds on the 2-core machine this was measured on, more than the
+whole exchange otherwise (benchmarks/parallel.py times the alternatives).
 
 Isolation: a worker that dies (segfault, abort), overruns the step timeout (hang) or reports
-an exception (e.g. an FMU returning fmi2Error) makes `WorkerPool.step` raise `WorkerFailure`
-naming the component, the macro step and the cause.  `close()` always leaves no process
+an exception (e.g. an FMU returning fmi2Error) makes `WorkerPool.run` raise `WorkerFailure`
+naming the component and the cause.  `close()` always leaves no process
 behind: workers get SIGKILL if they do not stop in time, and they die with the master
 (PR_SET_PDEATHSIG) should the master itself be killed.
 """
@@ -32,6 +34,7 @@ from master.backends.shm import SharedArrays
 STOP = -1  # op: leave the loop
 NOP = 0  # op: do nothing (measures the synchronisation cost)
 MSG_BYTES = 2048  # room for one error message per worker
+SPIN_S = 100e-6  # s: how long a waiting process polls before it sleeps (see WorkerPool)
 POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
 
 IDLE, RUNNING, FAILED = 0, 1, 2  # worker states in shared memory
@@ -77,7 +80,13 @@ def _die_with_parent(parent: int | None) -> None:
 
 
 def _worker_main(
-    index: int, factory: Callable[[], Task], control: SharedArrays, go, done, parent: int | None
+    index: int,
+    factory: Callable[[], Task],
+    control: SharedArrays,
+    go,
+    done,
+    parent: int | None,
+    spin: float,
 ) -> None:
     """Body of worker `index`: build the task, then step on command until STOP."""
     _die_with_parent(parent)
@@ -101,8 +110,8 @@ def _worker_main(
         state[0] = IDLE
         done.release()
         while True:
-            go.acquire()
-            op, a, b = (int(x) for x in cmd)
+            _spin_acquire(go, spin)
+            op, a, b = cmd.tolist()
             if op == STOP:
                 break
             state[0] = RUNNING
@@ -125,6 +134,26 @@ def _worker_main(
                 task.close()
             except Exception:
                 pass
+
+
+def _spin_acquire(sem, spin: float) -> None:
+    """Acquire `sem`, polling it for up to `spin` s (yielding the CPU) before blocking."""
+    if spin > 0:
+        end = time.perf_counter() + spin
+        while not sem.acquire(False):
+            if time.perf_counter() > end:
+                break
+            os.sched_yield()
+        else:
+            return
+    sem.acquire()
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
 
 
 def _signal_name(exitcode: int) -> str:
@@ -169,12 +198,14 @@ class WorkerPool:
         self.done = [ctx.Semaphore(0) for _ in range(w)]
         self.procs: list = []
         self.closed = False
+        self.last_wait = 0.0  # s: how long the master waited for the previous command
         try:
             parent = None if start_method == "forkserver" else os.getpid()  # forkserver: its server forks
+            spin = SPIN_S if w <= _cpus() else 0.0  # pollers must not take processors from workers
             for i, (_, factory) in enumerate(tasks):
                 p = ctx.Process(
                     target=_worker_main,
-                    args=(i, factory, self.control, self.go[i], self.done[i], parent),
+                    args=(i, factory, self.control, self.go[i], self.done[i], parent, spin),
                     name=f"master-worker-{'+'.join(self.names[i])}",
                     daemon=True,
                 )
@@ -197,17 +228,29 @@ class WorkerPool:
         self._wait(ids, self.step_timeout)
 
     def _wait(self, ids: Sequence[int], timeout: float) -> None:
-        """Collect the `done` of workers `ids`; raise WorkerFailure on a crash, an error or a hang."""
+        """Collect the `done` of workers `ids`; raise WorkerFailure on a crash, an error or a hang.
+
+        After a short previous wait the master polls first (waking a sleeping process costs tens
+        of microseconds); after a long one it sleeps at once, leaving the processors to the workers.
+        """
+        t0 = time.perf_counter()
+        spin = SPIN_S if self.last_wait < SPIN_S else 0.0
         deadline = time.monotonic() + timeout
         poll = min(POLL_S, timeout)
         for i in ids:
             sem = self.done[i]
-            while not sem.acquire(timeout=poll):
+            got = False
+            if spin:
+                end = t0 + spin
+                while not (got := sem.acquire(False)) and time.perf_counter() < end:
+                    os.sched_yield()
+            while not got and not sem.acquire(timeout=poll):
                 self._check_alive()
                 if time.monotonic() > deadline:
                     self.procs[i].kill()  # a hung FMU never returns to read the stop command
                     raise self._failure(i, f"hang: no answer within the step timeout of {timeout:g} s")
             self._check(i)
+        self.last_wait = time.perf_counter() - t0
 
     def _check_alive(self) -> None:
         for j, p in enumerate(self.procs):
