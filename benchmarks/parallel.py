@@ -42,24 +42,31 @@ def heavy(cost_us: float, steps: int, n: int = 2) -> Scenario:
     return Scenario(Path("heavy.ssd"), "heavy", comps, conns, Fraction(0), steps * H, H)
 
 
-def wall(sc: Scenario, backend: str, repeat: int) -> tuple[float, np.ndarray]:
-    """Best end-to-end wall time of `repeat` runs (s; worker start and FMU loading included), and the data."""
-    best, data = float("inf"), None
+def timed(sc: Scenario, backend: str) -> tuple[float, np.ndarray]:
+    """End-to-end wall time of one run (s; worker start and FMU loading included) and its data."""
+    t0 = time.perf_counter()
+    r = api.run(sc, backend=backend)
+    return time.perf_counter() - t0, r.data
+
+
+def both(sc: Scenario, repeat: int) -> tuple[float, float, bool]:
+    """Best serial and parallel wall times (s), runs interleaved so that both see the same load."""
+    ts = tp = float("inf")
+    same = True
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        r = api.run(sc, backend=backend)
-        best = min(best, time.perf_counter() - t0)
-        data = r.data
-    return best, data
+        t, ds = timed(sc, "serial")
+        ts = min(ts, t)
+        t, dp = timed(sc, "parallel")
+        tp = min(tp, t)
+        same = same and all(np.array_equal(ds[k], dp[k]) for k in ds.dtype.names)
+    return ts, tp, same
 
 
 def compare(label: str, sc: Scenario, repeat: int) -> tuple[float, float]:
-    ts, ds = wall(sc, "serial", repeat)
-    tp, dp = wall(sc, "parallel", repeat)
-    same = all(np.array_equal(ds[k], dp[k]) for k in ds.dtype.names)
+    ts, tp, same = both(sc, repeat)
     n = int((sc.stop_time - sc.start_time) / sc.macro_step)
     print(
-        f"{label:<34} {n:>6} {ts:9.3f} {tp:9.3f} {ts / tp:8.2f}   {1e6 * ts / n:9.1f} {1e6 * tp / n:9.1f}"
+        f"{label:<36} {n:>6} {ts:9.3f} {tp:9.3f} {ts / tp:8.2f}   {1e6 * ts / n:9.1f} {1e6 * tp / n:9.1f}"
         f"   {'yes' if same else 'NO'}"
     )
     return ts, tp
@@ -191,20 +198,21 @@ def main() -> int:
     repeat = 1 if args.quick else 3
     steps = 1000 if args.quick else 3000
 
-    print(f"machine: {cpu_count()} CPUs usable, Python {sys.version.split()[0]}, start method fork")
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    print(f"machine: {cpu_count()} CPUs usable, load average {load}, Python {sys.version.split()[0]}, fork")
     print(
-        f"{'scene':<34} {'steps':>6} {'serial s':>9} {'paral s':>9} {'speed-up':>8}   "
+        f"{'scene':<36} {'steps':>6} {'serial s':>9} {'paral s':>9} {'speed-up':>8}   "
         f"{'ser us/st':>9} {'par us/st':>9}   bitwise"
     )
     for scene in ("hydraulic-manipulator", "dc-motor-arm"):
         files = sorted((REPO / "models" / scene).glob("*.ssd"))
         if not files:
-            print(f"{scene:<34} (no scenario in models/{scene})")
+            print(f"{scene:<36} (no scenario in models/{scene})")
             continue
         sc = api.load_scenario(files[0])
-        compare(f"{scene} ({files[0].name})", sc, repeat)
+        compare(scene, sc, repeat)
     for cost in (100, 200, 400):
-        compare(f"heavy: 2 x crashtest, {cost} us/step", heavy(cost, steps), repeat)
+        compare(f"heavy: 2 crashtest x {cost} us/step", heavy(cost, steps), repeat)
 
     s2 = min(sync_cost(2) for _ in range(repeat))
     print(
@@ -218,8 +226,7 @@ def main() -> int:
     for cost in (0, 10, 20, 30, 50, 75, 100, 150):
         sc = heavy(cost, steps // 2)
         n = steps // 2
-        ts, _ = wall(sc, "serial", repeat)
-        tp, _ = wall(sc, "parallel", repeat)
+        ts, tp, _ = both(sc, repeat)
         pick = choose_backend(api.plan(sc))[0]
         print(f"{cost:8d} {1e6 * ts / n:13.1f} {1e6 * tp / n:15.1f} {ts / tp:9.2f} {pick:>11}")
         if crossover is None and tp < ts and previous is not None:
@@ -230,6 +237,7 @@ def main() -> int:
             f"crossover: parallel wins from a cost between {crossover[0]} and {crossover[1]} us per FMU step"
         )
 
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if args.compare_sync:
         print("\nbare synchronisation primitives, 2 workers, wall per step (us), best of 3:")
         for work in (0, 100):
