@@ -419,8 +419,10 @@ def choose_backend(plan: Plan) -> tuple[str, str]:
         return "serial", "no macro step to time"
     serial = wall / steps
     fmu = {pc.name: res[3 + i] / steps for i, pc in enumerate(plan.components)}
-    glue = max(serial - sum(fmu.values()), 0.0) / n  # master work per component and step
-    parallel = predict_parallel(plan, {k: v + glue for k, v in fmu.items()}, sync, cpus)
+    # master work outside the FMUs, shared out per communication step
+    glue = max(serial - sum(fmu.values()), 0.0) / sum(pc.ratio for pc in plan.components)
+    cost = {pc.name: fmu[pc.name] + glue * pc.ratio for pc in plan.components}
+    parallel = predict_parallel(plan, cost, sync, cpus)
     remaining = plan.n_macro - plan.startup_steps
     gain = remaining * (serial - parallel) - start - opened / 2
     facts = (
