@@ -63,25 +63,34 @@ def test_polynomial_extrapolation_converges_with_order_k_plus_1(order):
 
 
 @pytest.mark.parametrize(
-    "split, order, solvers, ratios",
+    "split, order, solvers, ratios, first",
     [
-        ("displacement", 3, (3, 5), (1, 20)),
-        ("force", 2, (3, 1), (1, 5)),
-        ("force", 1, (2, 6), (3, 1)),
+        ("displacement", 3, (3, 5), (1, 20), ()),
+        ("force", 2, (3, 1), (1, 5), ()),
+        ("force", 1, (2, 6), (3, 1), ()),
+        ("force", 2, (3, 1), (1, 5), ("mass2", "mass1")),  # Gauss-Seidel, either order
+        ("force", 3, (3, 6), (1, 20), ("mass1", "mass2")),
     ],
 )
-def test_linear_model_reproduces_the_runtime(split, order, solvers, ratios):
+def test_linear_model_reproduces_the_runtime(split, order, solvers, ratios, first):
     """The runtime on the msd FMUs and the linear model of its scheme agree to round-off, so the
     spectral radius of the model's macro-step map is the stability criterion of the runtime."""
+    import dataclasses
     from fractions import Fraction
 
     from master.api import run
     from master.evidence.oscillator import scene
 
     h = Fraction(1, 20)
-    data = run(scene(split=split, macro_step=h, order=order, solvers=solvers, step_ratios=ratios,
-                     stop_time=Fraction(5))).data  # fmt: skip
-    lin = split_scheme(order=order, solvers=solvers, step_ratios=ratios, split=split)
+    sc = scene(
+        split=split, macro_step=h, order=order, solvers=solvers, step_ratios=ratios, stop_time=Fraction(5)
+    )
+    if first:
+        sc = dataclasses.replace(sc, coupling="gauss-seidel", order=first)
+    data = run(sc).data
+    lin = dataclasses.replace(
+        split_scheme(order=order, solvers=solvers, step_ratios=ratios, split=split), first=first
+    )
     z = linear.simulate(lin, {"mass1": SET_A_Z0[:2], "mass2": SET_A_Z0[2:]}, float(h), 100)
     for i, name in enumerate(("mass1.x", "mass1.v", "mass2.x", "mass2.v")):
         assert np.max(np.abs(data[name] - z[:, i])) < 1e-13

@@ -50,6 +50,18 @@ class LinearScheme:
     connections: tuple[tuple[str, str, str, str], ...]
     order: int = 0
     inputs: str = "hold"  # "hold" or "polynomial"
+    first: tuple[str, ...] = ()  # Gauss-Seidel stepping order (empty: Jacobi)
+
+    def stepping(self) -> tuple[LinearComponent, ...]:
+        """Components in stepping order."""
+        if not self.first:
+            return self.components
+        by_name = {c.name: c for c in self.components}
+        return tuple(by_name[n] for n in self.first)
+
+    def source_first(self, source: str, consumer: str) -> bool:
+        """Gauss-Seidel: the source completes the macro step before the consumer starts it."""
+        return bool(self.first) and self.first.index(source) < self.first.index(consumer)
 
 
 def extrapolation_weights(order: int, s: float) -> np.ndarray:
@@ -90,8 +102,8 @@ def _driver(scheme: LinearScheme, consumer: str, name: str) -> tuple[str, str] |
 
 
 def _window(order: int, ks: int, kc: int, n: int, j: int, relaxed: bool) -> tuple[int, int]:
-    """(last source sample, order used) for the consumer's step j in macro step n (Jacobi);
-    relaxed: a start-up sweep, where the source's samples up to t_(n+1) exist."""
+    """(last source sample, order used) for the consumer's step j in macro step n; relaxed:
+    the source's samples up to t_(n+1) exist (a start-up sweep, or Gauss-Seidel source first)."""
     available = (n + 1) * ks if relaxed else n * ks
     j_end = min(available, -((-(j + 1) * ks) // kc))
     return j_end, min(order, j_end)
@@ -112,19 +124,20 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
     """Macro step n of every component: states in place; samples read from `read`, own new
     samples written into `write` (dicts: component -> {sample index: outputs})."""
     comps = {c.name: c for c in scheme.components}
-    for c in scheme.components:
+    for c in scheme.stepping():
         st = states[c.name]
         kc = c.step_ratio
         drivers = [_driver(scheme, c.name, i) for i in c.inputs]
 
-        def inputs(j: int, at: float, drivers=drivers, kc=kc) -> np.ndarray:
+        def inputs(j: int, at: float, drivers=drivers, kc=kc, name=c.name) -> np.ndarray:
             vals = np.zeros(len(drivers))
             for q, d in enumerate(drivers):
                 if d is None:
                     continue  # undriven: the linearisation is about its operating value
                 src = comps[d[0]]
                 ks, col = src.step_ratio, src.outputs.index(d[1])
-                j_end, p = _window(scheme.order, ks, kc, n, j, relaxed)
+                ahead = relaxed or scheme.source_first(src.name, name)
+                j_end, p = _window(scheme.order, ks, kc, n, j, ahead)
                 w = extrapolation_weights(p, (at * ks - j_end * kc) / kc)
                 vals[q] = sum(w[i] * read[src.name][j_end - i][col] for i in range(p + 1))
             return vals
@@ -268,12 +281,20 @@ def initial_outputs(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> dict[str
 
 def startup(scheme: LinearScheme) -> tuple[int, int]:
     """(start-up macro steps, sweeps per step) as the runtime plans them when every FMU can
-    save its state: steps while a link lacks samples for its order, each repeated `order` times."""
+    save its state: the steps in which a link lacks samples for its order, each repeated
+    `order` times."""
     if scheme.order == 0 or not scheme.connections:
         return 0, 0
     comps = {c.name: c for c in scheme.components}
-    steps = max(-(-scheme.order // comps[p].step_ratio) for p, _, _, _ in scheme.connections)
-    return steps, scheme.order
+    steps = 0
+    for p, _, c, _ in scheme.connections:
+        ks, kc = comps[p].step_ratio, comps[c].step_ratio
+        ahead = scheme.source_first(p, c)
+        n = 0
+        while min(_window(scheme.order, ks, kc, n, n * kc + m, ahead)[1] for m in range(kc)) < scheme.order:
+            n += 1
+        steps = max(steps, n)
+    return (steps, scheme.order) if steps else (0, 0)
 
 
 def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int) -> np.ndarray:

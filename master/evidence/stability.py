@@ -113,7 +113,10 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
-        return LinearScheme(tuple(comps), conns, order=k)
+        first = tuple(scenario.order) if scenario.coupling == "gauss-seidel" else ()
+        if scenario.coupling == "gauss-seidel" and not first:
+            first = tuple(c.name for c in scenario.components)
+        return LinearScheme(tuple(comps), conns, order=k, first=first)
     finally:
         scene.close()
 
