@@ -5,6 +5,10 @@ h_s). The input of a consumer at time t is the Lagrange polynomial through sampl
 j_end - p .. j_end evaluated at s = (t - t_{j_end}) / h_s: s > 0 extrapolates, s <= 0
 interpolates. Weights are computed exactly with rationals and cached, so the same step
 always gets bit-identical inputs whatever backend runs it.
+
+`LinkBlock` evaluates one link's polynomials for all steps of a macro step at once (one gather
+from the history, one multiply, one add per further sample), in the same floating-point
+operations as `History.combine` step by step.
 """
 
 from __future__ import annotations
@@ -83,6 +87,62 @@ class History:
         out[:] = w[0] * buf[j_end % cap, columns]
         for i in range(1, len(w)):
             out += w[i] * buf[(j_end - i) % cap, columns]
+
+
+class LinkBlock:
+    """Polynomial values of one link for a block of consumer steps: out[b, m, c] for b < B, m < k.
+
+    Value b at step m is sum_i weights[b, i, m] * sample(base + offsets[i, m])[columns[c]], summed
+    in the order i = 0, 1, ... (as `History.combine`), where base is a multiple of the source's
+    step ratio given per call. Gather indices are cached per ring position of `base`.
+    """
+
+    def __init__(self, columns: np.ndarray, offsets: np.ndarray, weights: np.ndarray):
+        """columns: history columns (nc); offsets: int (terms, k); weights: (B, terms, k)."""
+        self.columns = np.asarray(columns, dtype=np.intp)
+        self.offsets = np.asarray(offsets, dtype=np.intp)
+        self.weights = np.ascontiguousarray(weights, dtype=np.float64)[..., np.newaxis]
+        terms, k = self.offsets.shape
+        self.gathered = np.empty((terms, k, len(self.columns)))
+        self.products = np.empty((self.weights.shape[0], terms, k, len(self.columns)))
+        self._terms = [self.products[:, i] for i in range(terms)]  # (B, k, nc) views
+        self._index: dict[tuple[int, int, int], np.ndarray] = {}
+
+    def evaluate(self, history: History, base: int, out: np.ndarray) -> None:
+        """out (B, k, nc), e.g. a view into a larger array: the polynomial values from `base` on."""
+        buf = history.buf
+        cap, nv = buf.shape
+        key = (base % cap, cap, nv)
+        idx = self._index.get(key)
+        if idx is None:
+            rows = (key[0] + self.offsets) % cap
+            idx = self._index[key] = rows[:, :, np.newaxis] * nv + self.columns
+        np.take(buf, idx, out=self.gathered, mode="clip")
+        np.multiply(self.weights, self.gathered, out=self.products)
+        terms = self._terms
+        if len(terms) == 1:
+            out[...] = terms[0]
+            return
+        np.add(terms[0], terms[1], out=out)
+        for term in terms[2:]:
+            np.add(out, term, out=out)
+
+
+def stimulus_span(stim: Stimulus, t: float, start_value: float) -> tuple[float, float, float]:
+    """(value at t, lo, hi): the stimulus equals that value at every time in [lo, hi) (s).
+
+    lo == hi (== t) where the value changes around t (a sloped table segment).
+    """
+    times, values = stim.times, stim.values
+    if t < times[0]:
+        return (start_value if stim.kind == "step" else float(values[0])), -np.inf, float(times[0])
+    if stim.kind == "step":
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        hi = float(times[i + 1]) if i + 1 < len(times) else np.inf
+        return float(values[i]), float(times[i]), hi
+    if t >= times[-1]:
+        return float(values[-1]), float(times[-1]), np.inf
+    return float(np.interp(t, times, values)), t, t
 
 
 def stimulus_value(stim: Stimulus, t: float, start_value: float) -> float:

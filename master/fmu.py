@@ -23,6 +23,19 @@ from fmpy.model_description import ModelDescription, read_model_description
 REAL_TYPES = ("Real", "Float64", "Float32")
 INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
 
+DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a failure
+# FMI function behind each raw call, for error messages
+RAW_NAMES = {
+    "2": {
+        "get_real": "fmi2GetReal",
+        "set_real": "fmi2SetReal",
+        "do_step": "fmi2DoStep",
+        "set_input_derivatives": "fmi2SetRealInputDerivatives",
+    },
+    "3": {"get_real": "fmi3GetFloat64", "set_real": "fmi3SetFloat64", "do_step": "fmi3DoStep"},
+}
+
 
 class FmuError(Exception):
     """A failing FMU: bad file, bad model description or a failing FMI call."""
@@ -122,6 +135,7 @@ class RealPort:
     """A prepared vector of Real variables: one FMI call moves all values.
 
     `values` is a preallocated float64 array; `get()` fills it, `set()` sends it.
+    `vrs` and `count` are ready-made ctypes arguments for the raw calls of `Fmu`.
     """
 
     def __init__(self, fmu: Fmu, names: list[str]):
@@ -130,20 +144,35 @@ class RealPort:
         n = len(self.names)
         self.n = n
         self.vrs = (ctypes.c_uint * max(n, 1))(*[fmu.variables[x].vr for x in self.names])
+        self.count = ctypes.c_size_t(n)
         self.values = np.zeros(n)
-        self._ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        self._ptr = self.values.ctypes.data_as(DOUBLE_P)
         self.orders: dict[int, ctypes.Array] = {}  # derivative order -> prepared order vector
 
     def get(self) -> np.ndarray:
         """Read the variables into `values` (one call) and return it."""
         if self.n:
-            self.fmu._get_real(self.vrs, self.n, self._ptr, self.n)
+            self.get_into(self._ptr)
         return self.values
 
     def set(self) -> None:
         """Send `values` to the FMU (one call)."""
         if self.n:
-            self.fmu._set_real(self.vrs, self.n, self._ptr, self.n)
+            self.set_from(self._ptr)
+
+    def get_into(self, ptr: object) -> None:
+        """Read the variables into the n doubles at ctypes pointer `ptr` (one call)."""
+        f = self.fmu
+        status = f.raw_get_real(f.handle, self.vrs, self.count, ptr)
+        if status > OK_STATUS:
+            raise f.call_error("get_real", status)
+
+    def set_from(self, ptr: object) -> None:
+        """Send the n doubles at ctypes pointer `ptr` (one call)."""
+        f = self.fmu
+        status = f.raw_set_real(f.handle, self.vrs, self.count, ptr)
+        if status > OK_STATUS:
+            raise f.call_error("set_real", status)
 
 
 class Fmu:
@@ -194,8 +223,6 @@ class Fmu:
 
                 self.slave = FMU3Slave(**kw)
                 self.slave.instantiate(logMessage=self._log3)
-                self._get_real_fn = self.slave.fmi3GetFloat64
-                self._set_real_fn = self.slave.fmi3SetFloat64
             else:
                 from fmpy import calloc, free
                 from fmpy.fmi2 import (
@@ -212,9 +239,8 @@ class Fmu:
                 cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
                 cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
                 self.slave.instantiate(callbacks=cb)
-                self._get_real_fn = self.slave.fmi2GetReal
-                self._set_real_fn = self.slave.fmi2SetReal
             self._instantiated = True
+            self._bind_raw()
         except FMICallException as e:
             raise FmuError(self.describe(str(e))) from e
         except Exception as e:
@@ -231,24 +257,59 @@ class Fmu:
         tail = f" (FMU says: {self.last_log.strip()})" if self.last_log.strip() else ""
         return f"{self.name}: {what}{tail}"
 
-    # -- fast real access (value references prepared by RealPort) -------------------------------
-    def _get_real(self, vrs, n: int, ptr, nvalues: int) -> None:
-        try:
-            if self.fmi3:
-                self._get_real_fn(self.slave.component, vrs, n, ptr, nvalues)
-            else:
-                self._get_real_fn(self.slave.component, vrs, n, ptr)
-        except FMICallException as e:
-            raise FmuError(self.describe(str(e))) from e
+    # -- raw calls for the hot loop ---------------------------------------------------------------
+    def _bind_raw(self) -> None:
+        """Bind the FMI functions the stepping loop calls, without fmpy's per-call wrapper.
 
-    def _set_real(self, vrs, n: int, ptr, nvalues: int) -> None:
-        try:
-            if self.fmi3:
-                self._set_real_fn(self.slave.component, vrs, n, ptr, nvalues)
-            else:
-                self._set_real_fn(self.slave.component, vrs, n, ptr)
-        except FMICallException as e:
-            raise FmuError(self.describe(str(e))) from e
+        Each raw_* takes the instance `handle` first and returns the FMI status (an int); get/set
+        take (vrs array, count as c_size_t, double pointer) as prepared by `RealPort`.
+        """
+        dll = self.slave.dll
+        self.handle = ctypes.c_void_p(self.slave.component)
+
+        def fn(name: str, argtypes: list | None = None):
+            f = dll[name]  # a fresh function object: fmpy's own stays untouched
+            f.restype = ctypes.c_int
+            f.argtypes = argtypes
+            return f
+
+        if not self.fmi3:
+            self.raw_get_real = fn("fmi2GetReal")
+            self.raw_set_real = fn("fmi2SetReal")
+            self.raw_set_input_derivatives = fn("fmi2SetRealInputDerivatives")
+            self.raw_do_step = fn(
+                "fmi2DoStep", [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+            )
+            return
+        get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")
+        step3 = fn(
+            "fmi3DoStep",
+            [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool]
+            + [ctypes.POINTER(ctypes.c_bool)] * 3
+            + [DOUBLE_P],
+        )
+        flags = [ctypes.c_bool() for _ in range(3)]
+        last = ctypes.c_double()
+        refs = [ctypes.byref(x) for x in flags] + [ctypes.byref(last)]
+
+        def get_real(handle, vrs, count, ptr) -> int:
+            return get3(handle, vrs, count, ptr, count)
+
+        def set_real(handle, vrs, count, ptr) -> int:
+            return set3(handle, vrs, count, ptr, count)
+
+        def do_step(handle, t: float, h: float, no_set_prior: int) -> int:
+            status = step3(handle, t, h, bool(no_set_prior), *refs)
+            if status <= OK_STATUS and flags[1].value:  # terminateSimulation
+                raise FmuError(self.describe(f"asked to terminate at t={t + h}"))
+            return status
+
+        self.raw_get_real, self.raw_set_real, self.raw_do_step = get_real, set_real, do_step
+
+    def call_error(self, call: str, status: int) -> FmuError:
+        """The FmuError for raw call `call` ("get_real", "set_real", "do_step", ...) returning `status`."""
+        name = RAW_NAMES["3" if self.fmi3 else "2"][call]
+        return FmuError(self.describe(str(FMICallException(function=name, status=status))))
 
     def real_port(self, names: list[str]) -> RealPort:
         """A prepared vector of Real variables (names must exist and be Real)."""
@@ -337,16 +398,16 @@ class Fmu:
         orders = port.orders.get(order)
         if orders is None:
             orders = port.orders[order] = (ctypes.c_int * max(port.n, 1))(*([order] * port.n))
-        try:
-            self.slave.fmi2SetRealInputDerivatives(
-                self.slave.component,
-                port.vrs,
-                port.n,
-                orders,
-                values.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
-            )
-        except FMICallException as e:
-            raise FmuError(self.describe(str(e))) from e
+        self.set_input_derivatives_raw(port.vrs, port.count, orders, values.ctypes.data_as(DOUBLE_P))
+
+    def set_input_derivatives_raw(self, vrs: object, count: object, orders: object, ptr: object) -> None:
+        """fmi2SetRealInputDerivatives on prepared ctypes arguments (value references, c_size_t count,
+        c_int orders, double pointer); each value may have its own derivative order."""
+        if self.fmi3:
+            raise FmuError(self.describe("input derivatives are an FMI 2 feature"))
+        status = self.raw_set_input_derivatives(self.handle, vrs, count, orders, ptr)
+        if status > OK_STATUS:
+            raise self.call_error("set_input_derivatives", status)
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""
@@ -370,15 +431,9 @@ class Fmu:
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from communication point t by h (s); FmuError if the FMU refuses."""
-        try:
-            if self.fmi3:
-                event, terminate, early, last = self.slave.doStep(t, h)
-                if terminate:
-                    raise FmuError(self.describe(f"asked to terminate at t={t + h}"))
-            else:
-                self.slave.fmi2DoStep(self.slave.component, t, h, 1)
-        except FMICallException as e:
-            raise FmuError(self.describe(str(e))) from e
+        status = self.raw_do_step(self.handle, t, h, 1)
+        if status > OK_STATUS:
+            raise self.call_error("do_step", status)
 
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files; safe to call twice."""

@@ -9,13 +9,14 @@ produce bit-identical results. Times are in seconds.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import time
 
 import numpy as np
 
-from master.coupling import History, stimulus_value, weights
-from master.fmu import Fmu, FmuError, RealPort
+from master.coupling import History, LinkBlock, stimulus_span, stimulus_value, weights
+from master.fmu import DOUBLE_P, OK_STATUS, Fmu, FmuError
 from master.scenario.model import Component, Scenario
 from master.schedule import Link, Plan, PlanComponent
 
@@ -52,19 +53,61 @@ def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
 
 
 class _InLink:
-    """A link as the consumer evaluates it: source history columns -> input port slots."""
+    """A link as the consumer evaluates it: all its steps of a macro step in one `LinkBlock`.
 
-    def __init__(self, link: Link, columns: np.ndarray, slots: np.ndarray, step_s: float):
+    Blocks b of the consumer's input array: the values at the step start (b = 0), at the step
+    end (b = 1, for direct feedthrough) and the derivatives d = 1..D at the step start (units/s^d,
+    for FMUs that interpolate inputs). Step m of macro step n uses source samples
+    j_end - i, i = 0..order, with (j_end, p) = `Link.window`; terms beyond p (start-up) get weight 0
+    on sample j_end. Weights and offsets depend on n only at start-up, so they are cached.
+    """
+
+    def __init__(
+        self, link: Link, columns: np.ndarray, slots: slice, blocks: list[tuple[int, int]], step_s: float
+    ):
         self.link = link
         self.columns = columns
         self.slots = slots
-        self.value = np.zeros(len(slots))
-        self.source_step = step_s  # h of the source (s)
-        self.port: RealPort | None = None
+        self.blocks = blocks  # (step offset of the evaluation point, derivative order) per block
+        self.scale = [step_s**d for _, d in blocks]  # source step (s) ** derivative order
+        # from this macro step on every step uses the full order (per relaxed flag)
+        self.steady = {r: next(n for n in range(link.order + 2) if self._full(n, r)) for r in (False, True)}
+        self._blocks: dict[object, LinkBlock] = {}
+
+    def _full(self, n: int, relaxed: bool) -> bool:
+        kc = self.link.k_consumer
+        return all(self.link.window(n, n * kc + m, relaxed)[1] == self.link.order for m in range(kc))
+
+    def block(self, n: int, relaxed: bool) -> LinkBlock:
+        """The LinkBlock of macro step n (shared by all steady macro steps)."""
+        key = relaxed if n >= self.steady[relaxed] else (n, relaxed)
+        b = self._blocks.get(key)
+        if b is None:
+            b = self._blocks[key] = self._make(n, relaxed)
+        return b
+
+    def _make(self, n: int, relaxed: bool) -> LinkBlock:
+        lk = self.link
+        ks, kc, terms = lk.k_source, lk.k_consumer, lk.order + 1
+        offsets = np.zeros((terms, kc), dtype=np.intp)
+        w = np.zeros((len(self.blocks), terms, kc))
+        for m in range(kc):
+            j = n * kc + m
+            j_end, p = lk.window(n, j, relaxed)
+            offsets[:, m] = j_end - n * ks - np.minimum(np.arange(terms), p)
+            for b, (shift, d) in enumerate(self.blocks):
+                if d <= p:
+                    w[b, : p + 1, m] = weights(p, (j + shift) * ks - j_end * kc, kc, d)
+        return LinkBlock(self.columns, offsets, w)
 
 
 class ComponentRunner:
-    """Runs one FMU through the plan; owns its output history."""
+    """Runs one FMU through the plan; owns its output history.
+
+    Per macro step: every link's polynomials for all its steps at once (input array `u`,
+    blocks as in `_InLink`), then per step raw FMI calls on prepared pointers (inputs from a row
+    of `u`, outputs straight into the history ring), then one divergence check of the history.
+    """
 
     def __init__(self, plan: Plan, pc: PlanComponent, fmu: Fmu, out_names: dict[str, list[str]]):
         self.plan = plan
@@ -78,23 +121,52 @@ class ComponentRunner:
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
         in_names = [i for lk in links for i in lk.inputs] + [s.variable for s in stimuli]
         self.inp = fmu.real_port(in_names)
+        # outputs that depend directly on driven inputs need those inputs at the end of each step
+        self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
+        k = pc.ratio
+        self.n_values = 2 if self.feedthrough else 1  # value blocks of u: step start (and end)
+        blocks = [(0, 0), (1, 0)][: self.n_values] + [(0, d) for d in range(1, pc.derivative_order + 1)]
+        self.u = np.zeros((len(blocks), k, self.inp.n))
         self.links: list[_InLink] = []
+        self._link_out: list[np.ndarray] = []  # each link's view of u
+        self._scaled: list[tuple[np.ndarray, np.ndarray]] = []  # (view of u, divisor) per derivative
+        deriv: list[tuple[int, int, int]] = []  # (input index, order, index into u) per derivative
         pos = 0
         for lk in links:
             src_names = out_names[lk.source]
             cols = np.array([src_names.index(o) for o in lk.outputs], dtype=np.intp)
-            slots = np.arange(pos, pos + len(lk.inputs), dtype=np.intp)
-            pos += len(lk.inputs)
-            il = _InLink(lk, cols, slots, float(plan.component(lk.source).step))
-            il.port = fmu.real_port(list(lk.inputs))  # for fmi2SetRealInputDerivatives
+            sl = slice(pos, pos + len(lk.inputs))
+            il = _InLink(lk, cols, sl, blocks, float(plan.component(lk.source).step))
             self.links.append(il)
+            self._link_out.append(self.u[:, :, sl])
+            for b in range(self.n_values, len(blocks)):
+                d = blocks[b][1]
+                self._scaled.append((self.u[b, :, sl], np.array(il.scale[b])))
+                if d <= lk.order:
+                    deriv.extend((i, d, (b * k) * self.inp.n + i) for i in range(sl.start, sl.stop))
+            pos = sl.stop
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
-        # outputs that depend directly on driven inputs need those inputs at the end of each step
-        self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
+        self._stim_span = (np.inf, -np.inf)  # times (s) over which u holds the stimuli's values
+        self._deriv = None
+        if deriv:
+            vrs = (ctypes.c_uint * len(deriv))(*[self.inp.vrs[i] for i, _, _ in deriv])
+            orders = (ctypes.c_int * len(deriv))(*[d for _, d, _ in deriv])
+            values = np.zeros(len(deriv))
+            where = [np.array([x for _, _, x in deriv], dtype=np.intp) + m * self.inp.n for m in range(k)]
+            self._deriv = (
+                values,
+                where,
+                (vrs, ctypes.c_size_t(len(deriv)), orders, values.ctypes.data_as(DOUBLE_P)),
+            )
+        self._u_rows = [
+            [ctypes.c_void_p(self.u.ctypes.data + 8 * self.inp.n * (b * k + m)) for m in range(k)]
+            for b in range(self.n_values)
+        ]
         # a consumer of order p reads samples back to p before the macro step start, while this
         # component may already have written the whole macro step: k + p + 1 samples coexist
         max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
+        self._rows_of: np.ndarray | None = None  # the history buffer `_rows` point into
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
         self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
         self.steps = 0
@@ -106,41 +178,55 @@ class ComponentRunner:
                 self.record_real.append((1 + i, self.out.names.index(v)))
             elif c == pc.name:
                 self.record_other.append((1 + i, v))
+        dst = [i for i, _ in self.record_real]
+        self._rec_src = np.array([c for _, c in self.record_real], dtype=np.intp)
+        contiguous = dst == list(range(dst[0], dst[0] + len(dst))) if dst else False
+        self._rec_dst: slice | np.ndarray = (
+            slice(dst[0], dst[0] + len(dst)) if contiguous else np.array(dst, dtype=np.intp)
+        )
+
+    def _bind_history(self) -> None:
+        """Pointers to the rows of the history buffer (it may be replaced, e.g. by shared memory)."""
+        buf = self.history.buf
+        if not buf.flags.c_contiguous or buf.dtype != np.float64:
+            raise ValueError(f"{self.name}: the output history must be a C-contiguous float64 array")
+        self._rows = [ctypes.c_void_p(buf.ctypes.data + r * buf.strides[0]) for r in range(buf.shape[0])]
+        self._abs = np.empty_like(buf)
+        self._ok = np.empty(buf.shape, dtype=bool)
+        self._rows_of = buf
 
     # -- inputs ---------------------------------------------------------------------------------
-    def _fill_inputs(
-        self, n: int, j: int, histories: dict[str, History], at: int | None = None, relaxed: bool = False
-    ) -> None:
-        """Input port values of step j (in macro step n) at communication point `at` (default j).
-
-        at = j + 1 evaluates the same polynomials at the step's end: the inputs that go with
-        the outputs read there, so that direct-feedthrough outputs are not a step stale.
-        """
-        vals = self.inp.values
-        kc = self.pc.ratio
-        at = j if at is None else at
-        for il in self.links:
+    def _fill_inputs(self, n: int, histories: dict[str, History], relaxed: bool) -> None:
+        """The input array `u` for macro step n: every link's polynomials, then the stimuli."""
+        for il, out in zip(self.links, self._link_out, strict=True):
             lk = il.link
-            j_end, p = lk.window(n, j, relaxed)
-            w = weights(p, at * lk.k_source - j_end * kc, kc)
-            histories[lk.source].combine(j_end, w, il.columns, il.value)
-            vals[il.slots] = il.value
+            il.block(n, relaxed).evaluate(histories[lk.source], n * lk.k_source, out)
+        for view, divisor in self._scaled:
+            np.divide(view, divisor, out=view)
         if self.stimuli:
-            t = self.clock.time(at)
-            for slot, s, start in self.stimuli:
-                vals[slot] = stimulus_value(s, t, start)
+            k = self.pc.ratio
+            t0, t1 = self.clock.time(n * k), self.clock.time(n * k + k - 2 + self.n_values)
+            lo, hi = self._stim_span
+            if not (lo <= t0 and t1 < hi):
+                self._fill_stimuli(n * k, t0, t1)
 
-    def _set_derivatives(self, n: int, j: int, histories: dict[str, History], relaxed: bool = False) -> None:
-        """Hand the polynomials' derivatives at the step start to the FMU (canInterpolateInputs)."""
-        kc = self.pc.ratio
-        for il in self.links:
-            lk = il.link
-            j_end, p = lk.window(n, j, relaxed)
-            for d in range(1, min(p, self.pc.derivative_order) + 1):
-                w = weights(p, j * lk.k_source - j_end * kc, kc, d)
-                histories[lk.source].combine(j_end, w, il.columns, il.value)
-                il.value /= il.source_step**d
-                self.fmu.set_input_derivatives(il.port, d, il.value)
+    def _fill_stimuli(self, j0: int, t0: float, t1: float) -> None:
+        """Stimulus columns of the value blocks of u for steps j0.. (t0, t1: first and last time, s)."""
+        u = self.u
+        lo, hi = -np.inf, np.inf
+        for slot, s, start in self.stimuli:
+            v, a, b = stimulus_span(s, t0, start)
+            lo, hi = max(lo, a), min(hi, b)
+            u[: self.n_values, :, slot] = v
+        if lo <= t0 and t1 < hi:  # constant over the macro step: u holds them until they change
+            self._stim_span = (lo, hi)
+            return
+        self._stim_span = (np.inf, -np.inf)
+        for b in range(self.n_values):
+            for m in range(self.pc.ratio):
+                t = self.clock.time(j0 + m + b)
+                for slot, s, start in self.stimuli:
+                    u[b, m, slot] = stimulus_value(s, t, start)
 
     # -- stepping -------------------------------------------------------------------------------
     def initial_sweep(self, histories: dict[str, History]) -> None:
@@ -171,40 +257,71 @@ class ComponentRunner:
         relaxed: a start-up sweep (see Plan.startup_sweeps); `histories` then hold the sources'
         samples of macro step n from the previous sweep.
         """
-        k = self.pc.ratio
-        h = self.h
-        fmu = self.fmu
+        hist = self.history
+        if hist.buf is not self._rows_of:
+            self._bind_history()
         if self.bound is None:
-            self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(self.history.buf[0]))
-        for j in range(n * k, n * k + k):
-            t = self.clock.time(j)
-            self._fill_inputs(n, j, histories, relaxed=relaxed)
-            t0 = perf()
-            try:
-                self.inp.set()
-                if self.pc.interpolate_inputs:
-                    self._set_derivatives(n, j, histories, relaxed)
-                fmu.do_step(t, h)
-                if self.feedthrough:
-                    self._fill_inputs(n, j, histories, j + 1, relaxed)
-                    self.inp.set()
-                vals = self.out.get()
-            except FmuError as e:
-                raise SimulationError(
-                    f"{e} in the step from t={t} to t={self.clock.time(j + 1)}", self.name, t
-                ) from e
-            finally:
+            self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(hist.buf[0]))
+        self._fill_inputs(n, histories, relaxed)
+        k = self.pc.ratio
+        j0 = n * k
+        fmu = self.fmu
+        c = fmu.handle
+        set_real, get_real, do_step = fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step
+        ivrs, icount, ovrs, ocount = self.inp.vrs, self.inp.count, self.out.vrs, self.out.count
+        has_in, has_out, feedthrough = self.inp.n > 0, self.out.n > 0, self.feedthrough
+        u0 = self._u_rows[0]
+        u1 = self._u_rows[-1]
+        deriv = self._deriv
+        rows, cap = self._rows, hist.capacity
+        clock, h = self.clock, self.h
+        num0, dnum, den = clock.num0, clock.dnum, clock.den
+        j = j0
+        t = clock.time(j)
+        t0 = perf()
+        try:
+            for m in range(k):
+                t = (num0 + j * dnum) / den
+                if deriv is not None:
+                    np.take(self.u, deriv[1][m], out=deriv[0], mode="clip")
+                t0 = perf()
+                if has_in and (st := set_real(c, ivrs, icount, u0[m])) > OK_STATUS:
+                    raise fmu.call_error("set_real", st)
+                if deriv is not None:
+                    fmu.set_input_derivatives_raw(*deriv[2])
+                if (st := do_step(c, t, h, 1)) > OK_STATUS:
+                    raise fmu.call_error("do_step", st)
+                if feedthrough and (st := set_real(c, ivrs, icount, u1[m])) > OK_STATUS:
+                    raise fmu.call_error("set_real", st)
+                if has_out and (st := get_real(c, ovrs, ocount, rows[(j + 1) % cap])) > OK_STATUS:
+                    raise fmu.call_error("get_real", st)
                 self.fmu_time += perf() - t0
-            self.steps += 1
+                self.steps += 1
+                j += 1
+        except FmuError as e:
+            self.fmu_time += perf() - t0
+            self._check(j0, j)  # a diverged sample before the failing call explains it better
+            raise SimulationError(f"{e} in the step from t={t} to t={clock.time(j + 1)}", self.name, t) from e
+        hist.latest = j
+        self._check(j0, j)
+
+    def _check(self, j0: int, j1: int) -> None:
+        """Raise if one of the samples j0+1 .. j1 is not finite or beyond its bound (the earliest)."""
+        buf = self.history.buf
+        np.less_equal(np.abs(buf, out=self._abs), self.bound, out=self._ok)
+        if self._ok.all():  # older samples passed before; not yet written rows hold zeros
+            return
+        for j in range(j0 + 1, j1 + 1):
+            vals = buf[j % self.history.capacity]
+            t1 = self.clock.time(j)
             if not np.isfinite(vals).all():
                 bad = self.out.names[int(np.flatnonzero(~np.isfinite(vals))[0])]
-                t1 = self.clock.time(j + 1)
                 raise SimulationError(
                     f"unstable: {self.name}.{bad} at t={t1} ({UNSTABLE_HINT})", self.name, t1, bad
                 )
             if (np.abs(vals) > self.bound).any():
                 i = int(np.flatnonzero(np.abs(vals) > self.bound)[0])
-                bad, t1 = self.out.names[i], self.clock.time(j + 1)
+                bad = self.out.names[i]
                 raise SimulationError(
                     f"unstable: {self.name}.{bad} at t={t1}: {vals[i]:.3g} is beyond {GROWTH_LIMIT:g} times "
                     f"its start magnitude ({UNSTABLE_HINT})",
@@ -212,13 +329,12 @@ class ComponentRunner:
                     t1,
                     bad,
                 )
-            self.history.push(j + 1, vals)
 
     def record(self, n: int, row: np.ndarray) -> None:
         """Fill this component's recorded values at the end of macro step n into its columns of `row`."""
         vals = self.history.buf[((n + 1) * self.pc.ratio) % self.history.capacity]
-        for i, col in self.record_real:
-            row[i] = vals[col]
+        if self.record_real:
+            row[self._rec_dst] = vals[self._rec_src]
         for i, var in self.record_other:
             t0 = perf()
             try:
