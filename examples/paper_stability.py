@@ -1,10 +1,11 @@
 """Largest stable macro step against extrapolation order 0..3: linear analysis and runtime.
 
 Two scenes, both with the mechanics on AB3 at the macro step H and the control side on
-explicit Euler at H / r (Jacobi coupling):
-- the two-mass oscillator (force split, r = 10), where the linearisation is exact;
-- the hydraulic manipulator (r = 5), linearised at t = 0.1 s: its lightly damped
-  hydro-mechanical modes are what the macro step must not destabilise.
+explicit Euler at H / r:
+- the two-mass oscillator (force split, r = 10, Jacobi), where the linearisation is exact;
+- the hydraulic manipulator (r = 5, the scene's coupling: Gauss-Seidel, hydraulics first),
+  linearised at t = 0.1 s: its lightly damped hydro-mechanical modes are what the macro
+  step must not destabilise.
 Predicted: bisection on the spectral radius of the macro-step map (master.evidence.linear).
 Measured: bisection on runs of the runtime (master.evidence.stability.measured_limit).
 
@@ -53,7 +54,7 @@ def hydraulic_scene(sc, order: int, h: Fraction, stop: float = 2.0):
 
 
 def hydraulic_rows() -> list[list[str]]:
-    sc = load_scenario(HYDRAULIC)  # mechanics AB3 at H, hydraulics Euler at H / 5
+    sc = load_scenario(HYDRAULIC)  # mechanics AB3 at H, hydraulics Euler at H / 5, Gauss-Seidel
     lin = linearize(hydraulic_scene(sc, 1, Fraction(1, 1000)), t=0.1)
     rows = []
     for k in range(4):

@@ -52,6 +52,7 @@ class Config:
     ctrl_solver: int = EULER
     backend: str = "serial"
     single_rate: bool = False  # every component with the mechanics solver at the macro step
+    coupling: str | None = None  # "jacobi" or "gauss-seidel"; None: the scene's
 
     def __post_init__(self) -> None:
         if self.family == "single-rate":
@@ -60,11 +61,12 @@ class Config:
     @property
     def label(self) -> str:
         h = float(self.macro_step)
+        how = f"{self.backend}" + (f", {self.coupling}" if self.coupling else "")
         if self.single_rate:
-            return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {self.backend}"
+            return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {how}"
         return (
             f"{SOLVER_NAMES[self.mech_solver]} H={h:g} + {SOLVER_NAMES[self.ctrl_solver]} "
-            f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {self.backend}"
+            f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {how}"
         )
 
 
@@ -92,7 +94,7 @@ PROFILES: dict[str, Profile] = {
         mechanics=("mechanics",),
         control=("hydraulics",),
         record_interval=F(1, 100),
-        baseline=Config("single-rate", F(2, 10000)),
+        baseline=Config("single-rate", F(2, 10000), coupling="jacobi"),  # nearest to monolithic AB3
         single_steps=(F(1, 10000), F(2, 10000), F(5, 10000), F(1, 1000)),
         macro_steps=(F(5, 10000), F(1, 1000), F(2, 1000)),
         base=Config("dual-rate", F(1, 1000), ratio=5, order=1),
@@ -164,6 +166,9 @@ def configurations(p: Profile, quick: bool = False) -> list[Config]:
             for s in (SI_EULER, SI_MIDPOINT) for h in p.macro_steps]  # fmt: skip
     out += [dataclasses.replace(b, family="mech-solver", mech_solver=AB2)]
     out += [dataclasses.replace(c, family="backend", backend="parallel") for c in (p.baseline, b)]
+    for coupling in ("jacobi", "gauss-seidel"):
+        out += [dataclasses.replace(c, family="coupling", coupling=coupling) for c in (p.baseline, b)
+                if c.coupling != coupling]  # fmt: skip
     seen, unique = set(), []
     for c in out:
         key = dataclasses.replace(c, family="")
@@ -190,8 +195,11 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
             )
         )
     conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
+    coupling = c.coupling or sc.coupling
     return dataclasses.replace(
         sc,
+        coupling=coupling,
+        order=sc.order or tuple(x.name for x in sc.components) if coupling == "gauss-seidel" else sc.order,
         components=tuple(comps),
         connections=conns,
         macro_step=c.macro_step,
@@ -231,7 +239,9 @@ def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
         ctrl = comp.name in p.control and not c.single_rate
         comps.append(dataclasses.replace(comp, solver=c.ctrl_solver if ctrl else c.mech_solver,
                                          step_ratio=c.ratio if ctrl else 1, substeps=1))  # fmt: skip
-    return dataclasses.replace(lin, components=tuple(comps), order=c.order)
+    coupling = c.coupling or ("gauss-seidel" if lin.first else "jacobi")
+    first = (lin.first or tuple(x.name for x in lin.components)) if coupling == "gauss-seidel" else ()
+    return dataclasses.replace(lin, components=tuple(comps), order=c.order, first=first)
 
 
 @dataclass
@@ -325,7 +335,7 @@ def plot(rows: list[Row], path: Path, title: str) -> None:
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
     markers = {"single-rate": "s", "dual-rate": "o", "order": "^", "control-solver": "D", "mech-solver": "v",
-               "backend": "P"}  # fmt: skip
+               "backend": "P", "coupling": "*"}  # fmt: skip
     stable = [r for r in rows if r.stable]
     top = max([r.error for r in stable], default=1.0) * 3.0
     for fam, mk in markers.items():
