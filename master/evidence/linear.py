@@ -40,6 +40,7 @@ class LinearComponent:
     solver: int = RK4
     step_ratio: int = 1
     substeps: int = 1
+    order: int | None = None  # extrapolation order of its inputs (None: the scheme's)
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,14 @@ class LinearScheme:
     order: int = 0
     inputs: str = "hold"  # "hold" or "polynomial"
     first: tuple[str, ...] = ()  # Gauss-Seidel stepping order (empty: Jacobi)
+
+    def order_of(self, consumer: LinearComponent) -> int:
+        """Extrapolation order of the consumer's inputs."""
+        return self.order if consumer.order is None else consumer.order
+
+    def max_order(self) -> int:
+        """Highest order of any link (the history every sample buffer must hold)."""
+        return max([self.order_of(c) for c in self.components] + [self.order])
 
     def stepping(self) -> tuple[LinearComponent, ...]:
         """Components in stepping order."""
@@ -90,7 +99,7 @@ class _Layout:
             n = comp.a.shape[0]
             self.slices[comp.name] = tuple(slice(i + j * n, i + (j + 1) * n) for j in range(4))
             i += 4 * n
-            m = len(comp.outputs) * (scheme.order + 1)
+            m = len(comp.outputs) * (scheme.max_order() + 1)
             self.samples[comp.name] = slice(i, i + m)
             i += m
         self.size = i
@@ -129,7 +138,9 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
         kc = c.step_ratio
         drivers = [_driver(scheme, c.name, i) for i in c.inputs]
 
-        def inputs(j: int, at: float, drivers=drivers, kc=kc, name=c.name) -> np.ndarray:
+        k_in = scheme.order_of(c)
+
+        def inputs(j: int, at: float, drivers=drivers, kc=kc, name=c.name, k=k_in) -> np.ndarray:
             vals = np.zeros(len(drivers))
             for q, d in enumerate(drivers):
                 if d is None:
@@ -137,7 +148,7 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
                 src = comps[d[0]]
                 ks, col = src.step_ratio, src.outputs.index(d[1])
                 ahead = relaxed or scheme.source_first(src.name, name)
-                j_end, p = _window(scheme.order, ks, kc, n, j, ahead)
+                j_end, p = _window(k, ks, kc, n, j, ahead)
                 w = extrapolation_weights(p, (at * ks - j_end * kc) / kc)
                 vals[q] = sum(w[i] * read[src.name][j_end - i][col] for i in range(p + 1))
             return vals
@@ -212,7 +223,7 @@ def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
     """One steady Jacobi macro step of size big_h (s) applied to the extended state z."""
     lay = _Layout(scheme)
     z = np.asarray(z, dtype=float)
-    k = scheme.order
+    k = scheme.max_order()
     n = k + 1  # any macro step past the start-up
     states, hist = {}, {}
     for c in scheme.components:
@@ -282,19 +293,18 @@ def initial_outputs(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> dict[str
 def startup(scheme: LinearScheme) -> tuple[int, int]:
     """(start-up macro steps, sweeps per step) as the runtime plans them when every FMU can
     save its state: the steps in which a link lacks samples for its order, each repeated
-    `order` times."""
-    if scheme.order == 0 or not scheme.connections:
-        return 0, 0
+    (highest order) times."""
     comps = {c.name: c for c in scheme.components}
-    steps = 0
+    steps, sweeps = 0, 0
     for p, _, c, _ in scheme.connections:
-        ks, kc = comps[p].step_ratio, comps[c].step_ratio
+        ks, kc, k = comps[p].step_ratio, comps[c].step_ratio, scheme.order_of(comps[c])
         ahead = scheme.source_first(p, c)
         n = 0
-        while min(_window(scheme.order, ks, kc, n, n * kc + m, ahead)[1] for m in range(kc)) < scheme.order:
+        while min(_window(k, ks, kc, n, n * kc + m, ahead)[1] for m in range(kc)) < k:
             n += 1
         steps = max(steps, n)
-    return (steps, scheme.order) if steps else (0, 0)
+        sweeps = max(sweeps, k)
+    return (steps, sweeps) if steps else (0, 0)
 
 
 def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int) -> np.ndarray:

@@ -108,8 +108,9 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
             if ins:  # back to the operating point for the next component's reads
                 m.fmu.setReal([m.vr[i] for i in ins], list(map(float, u0)))
             solver = int(comp.parameters.get("solver", m.fmu.getInteger([m.vr["solver"]])[0]))
+            k_in = comp.extrapolation_order if order is None else order
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
-                                         step_ratio=comp.step_ratio))  # fmt: skip
+                                         step_ratio=comp.step_ratio, order=k_in))  # fmt: skip
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
