@@ -105,27 +105,30 @@ class LinkBlock:
         terms, k = self.offsets.shape
         self.gathered = np.empty((terms, k, len(self.columns)))
         self.products = np.empty((self.weights.shape[0], terms, k, len(self.columns)))
-        self._terms = [self.products[:, i] for i in range(terms)]  # (B, k, nc) views
-        self._index: dict[tuple[int, int, int], np.ndarray] = {}
+        # one term of weight 1 (order 0): the samples themselves, no arithmetic
+        self.copy = terms == 1 and bool((self.weights == 1.0).all())
+        self._shape: tuple[int, ...] = ()  # history shape the cached indices are for
+        self._index: dict[int, np.ndarray] = {}
 
     def evaluate(self, history: History, base: int, out: np.ndarray) -> None:
         """out (B, k, nc), e.g. a view into a larger array: the polynomial values from `base` on."""
         buf = history.buf
-        cap, nv = buf.shape
-        key = (base % cap, cap, nv)
-        idx = self._index.get(key)
+        if buf.shape != self._shape:
+            self._shape, self._index = buf.shape, {}
+        cap = buf.shape[0]
+        idx = self._index.get(base % cap)
         if idx is None:
-            rows = (key[0] + self.offsets) % cap
-            idx = self._index[key] = rows[:, :, np.newaxis] * nv + self.columns
-        np.take(buf, idx, out=self.gathered, mode="clip")
-        np.multiply(self.weights, self.gathered, out=self.products)
-        terms = self._terms
-        if len(terms) == 1:
-            out[...] = terms[0]
-            return
-        np.add(terms[0], terms[1], out=out)
-        for term in terms[2:]:
-            np.add(out, term, out=out)
+            rows = (base + self.offsets) % cap
+            idx = self._index[base % cap] = rows[:, :, np.newaxis] * buf.shape[1] + self.columns
+        g = self.gathered
+        buf.take(idx, None, g, "clip")
+        if self.copy:
+            out[...] = g
+        elif len(g) == 1:
+            np.multiply(self.weights[:, 0], g[0], out)
+        else:  # terms in order: (w0 y0 + w1 y1) + w2 y2 ...
+            np.multiply(self.weights, g, self.products)
+            np.add.reduce(self.products, 1, None, out)
 
 
 def stimulus_span(stim: Stimulus, t: float, start_value: float) -> tuple[float, float, float]:

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
 import time
 
 import numpy as np
 
 from master.coupling import History, LinkBlock, stimulus_span, stimulus_value, weights
-from master.fmu import DOUBLE_P, OK_STATUS, Fmu, FmuError
+from master.fmu import OK_STATUS, Fmu, FmuError
 from master.scenario.model import Component, Scenario
 from master.schedule import Link, Plan, PlanComponent
 
@@ -66,6 +67,7 @@ class _InLink:
         self, link: Link, columns: np.ndarray, slots: slice, blocks: list[tuple[int, int]], step_s: float
     ):
         self.link = link
+        self.source, self.k_source = link.source, link.k_source
         self.columns = columns
         self.slots = slots
         self.blocks = blocks  # (step offset of the evaluation point, derivative order) per block
@@ -73,6 +75,7 @@ class _InLink:
         # from this macro step on every step uses the full order (per relaxed flag)
         self.steady = {r: next(n for n in range(link.order + 2) if self._full(n, r)) for r in (False, True)}
         self._blocks: dict[object, LinkBlock] = {}
+        self._steady: LinkBlock | None = None  # the block of every steady, not relaxed macro step
 
     def _full(self, n: int, relaxed: bool) -> bool:
         kc = self.link.k_consumer
@@ -80,10 +83,14 @@ class _InLink:
 
     def block(self, n: int, relaxed: bool) -> LinkBlock:
         """The LinkBlock of macro step n (shared by all steady macro steps)."""
+        if not relaxed and n >= self.steady[False] and self._steady is not None:
+            return self._steady
         key = relaxed if n >= self.steady[relaxed] else (n, relaxed)
         b = self._blocks.get(key)
         if b is None:
             b = self._blocks[key] = self._make(n, relaxed)
+            if key is False:
+                self._steady = b
         return b
 
     def _make(self, n: int, relaxed: bool) -> LinkBlock:
@@ -124,13 +131,16 @@ class ComponentRunner:
         # outputs that depend directly on driven inputs need those inputs at the end of each step
         self.feedthrough = self.inp.n > 0 and any(o in fmu.feedthrough for o in self.out.names)
         k = pc.ratio
-        self.n_values = 2 if self.feedthrough else 1  # value blocks of u: step start (and end)
-        blocks = [(0, 0), (1, 0)][: self.n_values] + [(0, d) for d in range(1, pc.derivative_order + 1)]
-        self.u = np.zeros((len(blocks), k, self.inp.n))
+        n_in = self.inp.n
+        self.n_values = nv = 2 if self.feedthrough else 1  # value blocks of u: step start (and end)
+        blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
+        # u[m, b, i]: input i for step m of the macro step, block b (values, then derivatives);
+        # each u[m] is one contiguous run for the FMI calls
+        self.u = np.zeros((k, len(blocks), n_in))
         self.links: list[_InLink] = []
-        self._link_out: list[np.ndarray] = []  # each link's view of u
-        self._scaled: list[tuple[np.ndarray, np.ndarray]] = []  # (view of u, divisor) per derivative
-        deriv: list[tuple[int, int, int]] = []  # (input index, order, index into u) per derivative
+        self._link_out: list[np.ndarray] = []  # each link's (block, step, input) view of u
+        self._scaled: list[tuple[np.ndarray, np.ndarray]] = []  # (derivative view of u, h_s ** d)
+        self._zero: list[np.ndarray] = []  # derivatives beyond a link's order: not part of its polynomial
         pos = 0
         for lk in links:
             src_names = out_names[lk.source]
@@ -138,35 +148,31 @@ class ComponentRunner:
             sl = slice(pos, pos + len(lk.inputs))
             il = _InLink(lk, cols, sl, blocks, float(plan.component(lk.source).step))
             self.links.append(il)
-            self._link_out.append(self.u[:, :, sl])
-            for b in range(self.n_values, len(blocks)):
-                d = blocks[b][1]
-                self._scaled.append((self.u[b, :, sl], np.array(il.scale[b])))
-                if d <= lk.order:
-                    deriv.extend((i, d, (b * k) * self.inp.n + i) for i in range(sl.start, sl.stop))
+            self._link_out.append(self.u[:, :, sl].swapaxes(0, 1))
+            if len(blocks) > nv:
+                self._scaled.append((self.u[:, nv:, sl], np.array(il.scale[nv:])[:, np.newaxis]))
+            self._zero.extend(self.u[:, b, sl] for b in range(nv, len(blocks)) if blocks[b][1] > lk.order)
             pos = sl.stop
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
-        self._stim_span = (np.inf, -np.inf)  # times (s) over which u holds the stimuli's values
+        self._stim_steps = (1, 0)  # communication points i0 <= i < i1 at which u holds the stimuli
+        self._stim_last = k - 2 + nv  # last communication point a macro step evaluates, from its first
+        # every derivative of every input (zero for stimuli) in one call per step, straight from u[m]
         self._deriv = None
-        if deriv:
-            vrs = (ctypes.c_uint * len(deriv))(*[self.inp.vrs[i] for i, _, _ in deriv])
-            orders = (ctypes.c_int * len(deriv))(*[d for _, d, _ in deriv])
-            values = np.zeros(len(deriv))
-            where = [np.array([x for _, _, x in deriv], dtype=np.intp) + m * self.inp.n for m in range(k)]
-            self._deriv = (
-                values,
-                where,
-                (vrs, ctypes.c_size_t(len(deriv)), orders, values.ctypes.data_as(DOUBLE_P)),
-            )
-        self._u_rows = [
-            [ctypes.c_void_p(self.u.ctypes.data + 8 * self.inp.n * (b * k + m)) for m in range(k)]
-            for b in range(self.n_values)
-        ]
+        if len(blocks) > nv:
+            nd = (len(blocks) - nv) * n_in
+            vrs = (ctypes.c_uint * nd)(*(list(self.inp.vrs)[:n_in] * (len(blocks) - nv)))
+            orders = (ctypes.c_int * nd)(*[d for _, d in blocks[nv:] for _ in range(n_in)])
+            ptrs = [ctypes.c_void_p(self.u[m, nv].ctypes.data) for m in range(k)]
+            self._deriv = (vrs, ctypes.c_size_t(nd), orders, ptrs)
+        self._u_rows = [[ctypes.c_void_p(self.u[m, b].ctypes.data) for m in range(k)] for b in range(nv)]
         # a consumer of order p reads samples back to p before the macro step start, while this
         # component may already have written the whole macro step: k + p + 1 samples coexist
         max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
         self._rows_of: np.ndarray | None = None  # the history buffer `_rows` point into
+        self._raw = (fmu.handle, fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step)
+        self._raw += (self.inp.vrs, self.inp.count, self.out.vrs, self.out.count)
+        self._clock = (self.clock.num0, self.clock.dnum, self.clock.den)
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
         self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
         self.steps = 0
@@ -199,34 +205,44 @@ class ComponentRunner:
     def _fill_inputs(self, n: int, histories: dict[str, History], relaxed: bool) -> None:
         """The input array `u` for macro step n: every link's polynomials, then the stimuli."""
         for il, out in zip(self.links, self._link_out, strict=True):
-            lk = il.link
-            il.block(n, relaxed).evaluate(histories[lk.source], n * lk.k_source, out)
+            il.block(n, relaxed).evaluate(histories[il.source], n * il.k_source, out)
         for view, divisor in self._scaled:
-            np.divide(view, divisor, out=view)
+            np.divide(view, divisor, view)
+        for view in self._zero:
+            view[...] = 0.0
         if self.stimuli:
-            k = self.pc.ratio
-            t0, t1 = self.clock.time(n * k), self.clock.time(n * k + k - 2 + self.n_values)
-            lo, hi = self._stim_span
-            if not (lo <= t0 and t1 < hi):
-                self._fill_stimuli(n * k, t0, t1)
+            j0 = n * self.pc.ratio
+            i0, i1 = self._stim_steps
+            if not (i0 <= j0 and j0 + self._stim_last < i1):
+                self._fill_stimuli(j0)
 
-    def _fill_stimuli(self, j0: int, t0: float, t1: float) -> None:
-        """Stimulus columns of the value blocks of u for steps j0.. (t0, t1: first and last time, s)."""
-        u = self.u
+    def _fill_stimuli(self, j0: int) -> None:
+        """Stimulus columns of the value blocks of u for the macro step from point j0."""
+        u, nv, clock = self.u, self.n_values, self.clock
+        t0 = clock.time(j0)
         lo, hi = -np.inf, np.inf
         for slot, s, start in self.stimuli:
             v, a, b = stimulus_span(s, t0, start)
             lo, hi = max(lo, a), min(hi, b)
-            u[: self.n_values, :, slot] = v
-        if lo <= t0 and t1 < hi:  # constant over the macro step: u holds them until they change
-            self._stim_span = (lo, hi)
-            return
-        self._stim_span = (np.inf, -np.inf)
-        for b in range(self.n_values):
-            for m in range(self.pc.ratio):
-                t = self.clock.time(j0 + m + b)
+            u[:, :nv, slot] = v
+        if lo <= t0:  # u holds the values up to the first point at or after hi
+            if hi == np.inf:
+                i1 = sys.maxsize
+            else:
+                i1 = max(j0, math.ceil((hi * clock.den - clock.num0) / clock.dnum))  # estimate, then exact
+                while i1 > j0 and clock.time(i1 - 1) >= hi:
+                    i1 -= 1
+                while clock.time(i1) < hi:
+                    i1 += 1
+            self._stim_steps = (j0, i1)
+            if j0 + self._stim_last < i1:
+                return
+        self._stim_steps = (1, 0)
+        for m in range(self.pc.ratio):
+            for b in range(nv):
+                t = clock.time(j0 + m + b)
                 for slot, s, start in self.stimuli:
-                    u[b, m, slot] = stimulus_value(s, t, start)
+                    u[m, b, slot] = stimulus_value(s, t, start)
 
     # -- stepping -------------------------------------------------------------------------------
     def initial_sweep(self, histories: dict[str, History]) -> None:
@@ -263,54 +279,55 @@ class ComponentRunner:
         if self.bound is None:
             self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(hist.buf[0]))
         self._fill_inputs(n, histories, relaxed)
-        k = self.pc.ratio
-        j0 = n * k
         fmu = self.fmu
-        c = fmu.handle
-        set_real, get_real, do_step = fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step
-        ivrs, icount, ovrs, ocount = self.inp.vrs, self.inp.count, self.out.vrs, self.out.count
+        c, set_real, get_real, do_step, ivrs, icount, ovrs, ocount = self._raw
         has_in, has_out, feedthrough = self.inp.n > 0, self.out.n > 0, self.feedthrough
-        u0 = self._u_rows[0]
-        u1 = self._u_rows[-1]
         deriv = self._deriv
-        rows, cap = self._rows, hist.capacity
-        clock, h = self.clock, self.h
-        num0, dnum, den = clock.num0, clock.dnum, clock.den
-        j = j0
-        t = clock.time(j)
-        t0 = perf()
+        if deriv is not None:
+            dvrs, dcount, dorders, dptrs = deriv
+        u0, u1 = self._u_rows[0], self._u_rows[-1]
+        rows, cap = self._rows, len(self._rows)
+        num0, dnum, den = self._clock
+        h = self.h
+        k = self.pc.ratio
+        j = j0 = n * k
+        inside = 0.0  # s in FMI calls
+        t = t0 = 0.0
         try:
             for m in range(k):
                 t = (num0 + j * dnum) / den
-                if deriv is not None:
-                    np.take(self.u, deriv[1][m], out=deriv[0], mode="clip")
                 t0 = perf()
                 if has_in and (st := set_real(c, ivrs, icount, u0[m])) > OK_STATUS:
                     raise fmu.call_error("set_real", st)
                 if deriv is not None:
-                    fmu.set_input_derivatives_raw(*deriv[2])
+                    fmu.set_input_derivatives_raw(dvrs, dcount, dorders, dptrs[m])
                 if (st := do_step(c, t, h, 1)) > OK_STATUS:
                     raise fmu.call_error("do_step", st)
                 if feedthrough and (st := set_real(c, ivrs, icount, u1[m])) > OK_STATUS:
                     raise fmu.call_error("set_real", st)
                 if has_out and (st := get_real(c, ovrs, ocount, rows[(j + 1) % cap])) > OK_STATUS:
                     raise fmu.call_error("get_real", st)
-                self.fmu_time += perf() - t0
-                self.steps += 1
+                inside += perf() - t0
                 j += 1
         except FmuError as e:
-            self.fmu_time += perf() - t0
+            self.fmu_time += inside + perf() - t0
+            self.steps += j - j0
             self._check(j0, j)  # a diverged sample before the failing call explains it better
-            raise SimulationError(f"{e} in the step from t={t} to t={clock.time(j + 1)}", self.name, t) from e
+            raise SimulationError(
+                f"{e} in the step from t={t} to t={self.clock.time(j + 1)}", self.name, t
+            ) from e
+        self.fmu_time += inside
+        self.steps += k
         hist.latest = j
-        self._check(j0, j)
+        if not all_true(np.less_equal(np.abs(hist.buf, self._abs), self.bound, self._ok), None):
+            self._check(j0, j)
 
     def _check(self, j0: int, j1: int) -> None:
-        """Raise if one of the samples j0+1 .. j1 is not finite or beyond its bound (the earliest)."""
+        """Raise if one of the samples j0+1 .. j1 is not finite or beyond its bound (the earliest).
+
+        Samples before j0+1 passed this check before; history rows not yet written hold zeros.
+        """
         buf = self.history.buf
-        np.less_equal(np.abs(buf, out=self._abs), self.bound, out=self._ok)
-        if self._ok.all():  # older samples passed before; not yet written rows hold zeros
-            return
         for j in range(j0 + 1, j1 + 1):
             vals = buf[j % self.history.capacity]
             t1 = self.clock.time(j)
@@ -363,3 +380,4 @@ def _start_value(fmu: Fmu, var: str) -> float:
 
 
 perf = time.perf_counter
+all_true = np.logical_and.reduce
