@@ -94,3 +94,9 @@ def test_linear_model_reproduces_the_runtime(split, order, solvers, ratios, firs
     z = linear.simulate(lin, {"mass1": SET_A_Z0[:2], "mass2": SET_A_Z0[2:]}, float(h), 100)
     for i, name in enumerate(("mass1.x", "mass1.v", "mass2.x", "mass2.v")):
         assert np.max(np.abs(data[name] - z[:, i])) < 1e-13
+
+
+def test_monolithic_matrix_of_the_split_is_the_oscillator():
+    for split in ("force", "displacement"):
+        a = linear.monolithic_matrix(split_scheme(SET_A, split=split))
+        assert np.allclose(a, SET_A.matrix())
