@@ -170,9 +170,6 @@ class ComponentRunner:
         max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
         self._rows_of: np.ndarray | None = None  # the history buffer `_rows` point into
-        self._raw = (fmu.handle, fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step)
-        self._raw += (self.inp.vrs, self.inp.count, self.out.vrs, self.out.count)
-        self._clock = (self.clock.num0, self.clock.dnum, self.clock.den)
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
         self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
         self.steps = 0
@@ -192,13 +189,26 @@ class ComponentRunner:
         )
 
     def _bind_history(self) -> None:
-        """Pointers to the rows of the history buffer (it may be replaced, e.g. by shared memory)."""
+        """Prepare the stepping loop for the current history buffer (it may be replaced, e.g. by
+        shared memory): pointers to its rows, everything the loop reads, the divergence screen."""
         buf = self.history.buf
         if not buf.flags.c_contiguous or buf.dtype != np.float64:
             raise ValueError(f"{self.name}: the output history must be a C-contiguous float64 array")
-        self._rows = [ctypes.c_void_p(buf.ctypes.data + r * buf.strides[0]) for r in range(buf.shape[0])]
-        self._abs = np.empty_like(buf)
-        self._ok = np.empty(buf.shape, dtype=bool)
+        if self.bound is None:
+            self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(buf[0]))
+        rows = [ctypes.c_void_p(buf.ctypes.data + r * buf.strides[0]) for r in range(buf.shape[0])]
+        # sum over the ring of (y / bound)^2 <= 1 proves every sample within bounds (NaN fails it)
+        self._flat = buf.reshape(-1)
+        self._squares = np.empty_like(self._flat)
+        self._inv_bound2 = np.tile(1.0 / self.bound**2, buf.shape[0])
+        fmu = self.fmu
+        d = self._deriv or (None,) * 4
+        self._calls = (fmu, fmu.handle, fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step)
+        self._calls += (fmu.raw_set_input_derivatives if self._deriv else None,)
+        self._args = (self.inp.vrs, self.inp.count, self.out.vrs, self.out.count, *d[:3])
+        self._flags = (self.inp.n > 0, self.out.n > 0, self.feedthrough, self._deriv is not None)
+        self._pointers = (self._u_rows[0], self._u_rows[-1], d[3], rows)
+        self._steps = (self.clock.num0, self.clock.dnum, self.clock.den, self.h, self.pc.ratio)
         self._rows_of = buf
 
     # -- inputs ---------------------------------------------------------------------------------
@@ -276,31 +286,24 @@ class ComponentRunner:
         hist = self.history
         if hist.buf is not self._rows_of:
             self._bind_history()
-        if self.bound is None:
-            self.bound = GROWTH_LIMIT * np.maximum(1.0, np.abs(hist.buf[0]))
         self._fill_inputs(n, histories, relaxed)
-        fmu = self.fmu
-        c, set_real, get_real, do_step, ivrs, icount, ovrs, ocount = self._raw
-        has_in, has_out, feedthrough = self.inp.n > 0, self.out.n > 0, self.feedthrough
-        deriv = self._deriv
-        if deriv is not None:
-            dvrs, dcount, dorders, dptrs = deriv
-        u0, u1 = self._u_rows[0], self._u_rows[-1]
-        rows, cap = self._rows, len(self._rows)
-        num0, dnum, den = self._clock
-        h = self.h
-        k = self.pc.ratio
+        fmu, c, set_real, get_real, do_step, set_deriv = self._calls
+        ivrs, icount, ovrs, ocount, dvrs, dcount, dorders = self._args
+        has_in, has_out, feedthrough, deriv = self._flags
+        u0, u1, dptrs, rows = self._pointers
+        num0, dnum, den, h, k = self._steps
+        cap = len(rows)
         j = j0 = n * k
         inside = 0.0  # s in FMI calls
-        t = t0 = 0.0
+        t, t0 = 0.0, perf()
         try:
             for m in range(k):
                 t = (num0 + j * dnum) / den
                 t0 = perf()
                 if has_in and (st := set_real(c, ivrs, icount, u0[m])) > OK_STATUS:
                     raise fmu.call_error("set_real", st)
-                if deriv is not None:
-                    fmu.set_input_derivatives_raw(dvrs, dcount, dorders, dptrs[m])
+                if deriv and (st := set_deriv(c, dvrs, dcount, dorders, dptrs[m])) > OK_STATUS:
+                    raise fmu.call_error("set_input_derivatives", st)
                 if (st := do_step(c, t, h, 1)) > OK_STATUS:
                     raise fmu.call_error("do_step", st)
                 if feedthrough and (st := set_real(c, ivrs, icount, u1[m])) > OK_STATUS:
@@ -319,7 +322,7 @@ class ComponentRunner:
         self.fmu_time += inside
         self.steps += k
         hist.latest = j
-        if not all_true(np.less_equal(np.abs(hist.buf, self._abs), self.bound, self._ok), None):
+        if not np.multiply(self._flat, self._flat, self._squares) @ self._inv_bound2 <= 1.0:
             self._check(j0, j)
 
     def _check(self, j0: int, j1: int) -> None:
@@ -350,8 +353,11 @@ class ComponentRunner:
     def record(self, n: int, row: np.ndarray) -> None:
         """Fill this component's recorded values at the end of macro step n into its columns of `row`."""
         vals = self.history.buf[((n + 1) * self.pc.ratio) % self.history.capacity]
-        if self.record_real:
-            row[self._rec_dst] = vals[self._rec_src]
+        dst = self._rec_dst
+        if isinstance(dst, slice):
+            vals.take(self._rec_src, None, row[dst], "clip")
+        elif len(dst):
+            row[dst] = vals[self._rec_src]
         for i, var in self.record_other:
             t0 = perf()
             try:
@@ -380,4 +386,3 @@ def _start_value(fmu: Fmu, var: str) -> float:
 
 
 perf = time.perf_counter
-all_true = np.logical_and.reduce
