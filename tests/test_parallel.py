@@ -27,11 +27,12 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def helper_pids() -> set[int]:
-    """multiprocessing's own helper (the shared-memory resource tracker) may stay; workers may not."""
-    from multiprocessing import resource_tracker
+    """multiprocessing's own helpers (resource tracker, fork server) may stay; workers may not."""
+    from multiprocessing import forkserver, resource_tracker
 
-    pid = getattr(resource_tracker._resource_tracker, "_pid", None)
-    return {pid} if pid else set()
+    pids = {getattr(resource_tracker._resource_tracker, "_pid", None)}
+    pids.add(getattr(forkserver._forkserver, "_forkserver_pid", None))
+    return {p for p in pids if p}
 
 
 def assert_no_children() -> None:
@@ -284,6 +285,26 @@ def test_auto_picks_serial_for_cheap_and_parallel_for_heavy_scene():
     r = api.run(lags(2, stop=Fraction(1, 10)), backend="auto")
     assert r.summary.backend.startswith("serial (auto:")
     assert_no_children()
+
+
+@pytest.mark.parametrize("method", ["spawn", "forkserver"])
+def test_other_start_methods_give_the_same_bits(method):
+    """Under spawn/forkserver the plan and shared arrays travel pickled (by name) to the workers."""
+    from master.backends.driver import execute
+    from master.recorder import Recorder
+
+    sc = lags(3, ratios=[1, 3, 2], stop=Fraction(1, 2))
+    p = api.plan(sc)
+    be = ParallelBackend(p, start_method=method)
+    rec = Recorder(["time"] + [f"{c}.{v}" for c, v in p.record], None)
+    try:
+        be.open()
+        execute(p, be, rec)
+    finally:
+        be.close()
+    ref, got = api.run(sc, backend="serial").data, rec.data()
+    assert all(np.array_equal(ref[k], got[k]) for k in ref.dtype.names)
+    rec.discard()
 
 
 def test_backend_close_without_open_and_twice():
