@@ -169,6 +169,7 @@ class ComponentRunner:
         # component may already have written the whole macro step: k + p + 1 samples coexist
         max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
         self.history = History(self.out.n, pc.ratio + max_order + 2)
+        self.reads = samples_read(plan, pc.name)  # reads[m]: outputs are read after step m
         self._rows_of: np.ndarray | None = None  # the history buffer `_rows` point into
         self.fmu_time = 0.0  # wall time inside FMI calls (s)
         self.bound: np.ndarray | None = None  # divergence bound per output, from the start values
@@ -206,7 +207,7 @@ class ComponentRunner:
         self._calls = (fmu, fmu.handle, fmu.raw_set_real, fmu.raw_get_real, fmu.raw_do_step)
         self._calls += (fmu.raw_set_input_derivatives if self._deriv else None,)
         self._args = (self.inp.vrs, self.inp.count, self.out.vrs, self.out.count, *d[:3])
-        self._flags = (self.inp.n > 0, self.out.n > 0, self.feedthrough, self._deriv is not None)
+        self._flags = (self.inp.n > 0, self.out.n > 0, self.feedthrough, self._deriv is not None, self.reads)
         self._pointers = (self._u_rows[0], self._u_rows[-1], d[3], rows)
         self._steps = (self.clock.num0, self.clock.dnum, self.clock.den, self.h, self.pc.ratio)
         self._rows_of = buf
@@ -289,7 +290,7 @@ class ComponentRunner:
         self._fill_inputs(n, histories, relaxed)
         fmu, c, set_real, get_real, do_step, set_deriv = self._calls
         ivrs, icount, ovrs, ocount, dvrs, dcount, dorders = self._args
-        has_in, has_out, feedthrough, deriv = self._flags
+        has_in, has_out, feedthrough, deriv, reads = self._flags
         u0, u1, dptrs, rows = self._pointers
         num0, dnum, den, h, k = self._steps
         cap = len(rows)
@@ -308,7 +309,11 @@ class ComponentRunner:
                     raise fmu.call_error("do_step", st)
                 if feedthrough and (st := set_real(c, ivrs, icount, u1[m])) > OK_STATUS:
                     raise fmu.call_error("set_real", st)
-                if has_out and (st := get_real(c, ovrs, ocount, rows[(j + 1) % cap])) > OK_STATUS:
+                if (
+                    has_out
+                    and reads[m]
+                    and (st := get_real(c, ovrs, ocount, rows[(j + 1) % cap])) > OK_STATUS
+                ):
                     raise fmu.call_error("get_real", st)
                 inside += perf() - t0
                 j += 1
@@ -326,12 +331,14 @@ class ComponentRunner:
             self._check(j0, j)
 
     def _check(self, j0: int, j1: int) -> None:
-        """Raise if one of the samples j0+1 .. j1 is not finite or beyond its bound (the earliest).
+        """Raise if one of the samples j0+1 .. j1 read is not finite or beyond its bound (the earliest).
 
         Samples before j0+1 passed this check before; history rows not yet written hold zeros.
         """
         buf = self.history.buf
         for j in range(j0 + 1, j1 + 1):
+            if not self.reads[j - j0 - 1]:
+                continue
             vals = buf[j % self.history.capacity]
             t1 = self.clock.time(j)
             if not np.isfinite(vals).all():
@@ -366,6 +373,27 @@ class ComponentRunner:
                 raise SimulationError(str(e), self.name, math.nan, var) from e
             finally:
                 self.fmu_time += perf() - t0
+
+
+def samples_read(plan: Plan, name: str) -> list[bool]:
+    """reads[m]: whether the samples after step m of a macro step of `name` are ever used.
+
+    A consumer's polynomials use the source samples of its windows (`Link.window`, start-up and
+    relaxed ones included), the recorder the samples at macro step ends. Outputs are read (and
+    checked for divergence) only where used: a source stepping k times per macro step for an
+    order-0 consumer is read once, not k times.
+    """
+    k = plan.component(name).ratio
+    used = {0}
+    for lk in plan.links:
+        if lk.source != name:
+            continue
+        for n in range(lk.order + 3):  # past start-up, windows repeat every macro step
+            for m in range(lk.k_consumer):
+                for relaxed in (False, True):
+                    j_end = lk.window(n, n * lk.k_consumer + m, relaxed)[0]
+                    used.update((j_end - i) % k for i in range(lk.order + 1))
+    return [(m + 1) % k in used for m in range(k)]
 
 
 def open_fmu(sc: Scenario, comp: Component) -> Fmu:

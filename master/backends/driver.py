@@ -108,12 +108,13 @@ def execute(
         backend.record(-1, row)
         recorder.commit()
         pacer = Pacer(real_time, H) if real_time else None
+        step, record, time_of, last = backend.step, backend.record, plan.macro_clock.time, plan.n_macro - 1
         for n in range(plan.n_macro):
-            backend.step(n)
-            if (n + 1) % every == 0 or n + 1 == plan.n_macro:
+            step(n)
+            if (n + 1) % every == 0 or n == last:
                 row = recorder.next_row()
-                row[0] = plan.macro_clock.time(n + 1)
-                backend.record(n, row)
+                row[0] = time_of(n + 1)
+                record(n, row)
                 recorder.commit()
             if pacer is not None:
                 pacer.wait(n + 1)

@@ -64,8 +64,9 @@ class SerialBackend:
     def step(self, n: int) -> None:
         """Advance every component through macro step n (repeated at start-up, see Plan)."""
         if n >= self.plan.startup_steps:
+            histories = self.histories
             for r in self.runners:
-                r.macro_step(n, self.histories)
+                r.macro_step(n, histories)
             return
         saved = {r.name: self._call(r, n, r.fmu.get_state) for r in self.runners}
         try:
