@@ -97,8 +97,12 @@ class LinkBlock:
     step ratio given per call. Gather indices are cached per ring position of `base`.
     """
 
-    def __init__(self, columns: np.ndarray, offsets: np.ndarray, weights: np.ndarray):
-        """columns: history columns (nc); offsets: int (terms, k); weights: (B, terms, k)."""
+    def __init__(
+        self, columns: np.ndarray, offsets: np.ndarray, weights: np.ndarray, zero: np.ndarray | None = None
+    ):
+        """columns: history columns (nc); offsets: int (terms, k); weights: (B, terms, k);
+        zero: bool (B, k), values that are exactly 0.0 whatever the samples (e.g. a derivative
+        beyond the polynomial's degree; a zero-weighted sum could give -0.0)."""
         self.columns = np.asarray(columns, dtype=np.intp)
         self.offsets = np.asarray(offsets, dtype=np.intp)
         self.weights = np.ascontiguousarray(weights, dtype=np.float64)[..., np.newaxis]
@@ -107,6 +111,7 @@ class LinkBlock:
         self.products = np.empty((self.weights.shape[0], terms, k, len(self.columns)))
         # one term of weight 1 (order 0): the samples themselves, no arithmetic
         self.copy = terms == 1 and bool((self.weights == 1.0).all())
+        self.zero = zero if zero is not None and zero.any() else None
         self._shape: tuple[int, ...] = ()  # history shape the cached indices are for
         self._index: dict[int, np.ndarray] = {}
 
@@ -129,6 +134,8 @@ class LinkBlock:
         else:  # terms in order: (w0 y0 + w1 y1) + w2 y2 ...
             np.multiply(self.weights, g, self.products)
             np.add.reduce(self.products, 1, None, out)
+        if self.zero is not None:
+            out[self.zero] = 0.0
 
 
 def stimulus_span(stim: Stimulus, t: float, start_value: float) -> tuple[float, float, float]:

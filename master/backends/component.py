@@ -1,10 +1,11 @@
 """One component's work in the multirate algorithm, written once for every backend.
 
-`ComponentRunner.macro_step(n)` advances one FMU through macro step n: at each of its
-communication points it evaluates its coupling polynomials from the source histories, sets
-its inputs (one vectorised set), steps, reads its outputs (one vectorised get) and stores
-them in its own history. Serial and parallel backends both call exactly this code, so they
-produce bit-identical results. Times are in seconds.
+`ComponentRunner.macro_step(n)` advances one FMU through macro step n: it evaluates its coupling
+polynomials for all its communication points of the macro step at once from the source
+histories, then at each point sets its inputs (one raw FMI call), steps, and reads its outputs
+straight into its own history (one raw call, only where a consumer or the recorder uses the
+sample). Serial and parallel backends both call exactly this code, so they produce
+bit-identical results. Times are in seconds.
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ class _InLink:
     end (b = 1, for direct feedthrough) and the derivatives d = 1..D at the step start (units/s^d,
     for FMUs that interpolate inputs). Step m of macro step n uses source samples
     j_end - i, i = 0..order, with (j_end, p) = `Link.window`; terms beyond p (start-up) get weight 0
-    on sample j_end. Weights and offsets depend on n only at start-up, so they are cached.
+    on sample j_end, derivatives beyond p are 0. Weights and offsets depend on n only at start-up,
+    so they are cached.
     """
 
     def __init__(
@@ -98,6 +100,7 @@ class _InLink:
         ks, kc, terms = lk.k_source, lk.k_consumer, lk.order + 1
         offsets = np.zeros((terms, kc), dtype=np.intp)
         w = np.zeros((len(self.blocks), terms, kc))
+        zero = np.zeros((len(self.blocks), kc), dtype=bool)
         for m in range(kc):
             j = n * kc + m
             j_end, p = lk.window(n, j, relaxed)
@@ -105,7 +108,8 @@ class _InLink:
             for b, (shift, d) in enumerate(self.blocks):
                 if d <= p:
                     w[b, : p + 1, m] = weights(p, (j + shift) * ks - j_end * kc, kc, d)
-        return LinkBlock(self.columns, offsets, w)
+                zero[b, m] = d > p
+        return LinkBlock(self.columns, offsets, w, zero)
 
 
 class ComponentRunner:
@@ -140,7 +144,6 @@ class ComponentRunner:
         self.links: list[_InLink] = []
         self._link_out: list[np.ndarray] = []  # each link's (block, step, input) view of u
         self._scaled: list[tuple[np.ndarray, np.ndarray]] = []  # (derivative view of u, h_s ** d)
-        self._zero: list[np.ndarray] = []  # derivatives beyond a link's order: not part of its polynomial
         pos = 0
         for lk in links:
             src_names = out_names[lk.source]
@@ -151,7 +154,6 @@ class ComponentRunner:
             self._link_out.append(self.u[:, :, sl].swapaxes(0, 1))
             if len(blocks) > nv:
                 self._scaled.append((self.u[:, nv:, sl], np.array(il.scale[nv:])[:, np.newaxis]))
-            self._zero.extend(self.u[:, b, sl] for b in range(nv, len(blocks)) if blocks[b][1] > lk.order)
             pos = sl.stop
         self.stimuli = [(pos + i, s, _start_value(fmu, s.variable)) for i, s in enumerate(stimuli)]
         self._stim_steps = (1, 0)  # communication points i0 <= i < i1 at which u holds the stimuli
@@ -219,8 +221,6 @@ class ComponentRunner:
             il.block(n, relaxed).evaluate(histories[il.source], n * il.k_source, out)
         for view, divisor in self._scaled:
             np.divide(view, divisor, view)
-        for view in self._zero:
-            view[...] = 0.0
         if self.stimuli:
             j0 = n * self.pc.ratio
             i0, i1 = self._stim_steps
