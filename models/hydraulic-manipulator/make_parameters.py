@@ -1,7 +1,8 @@
 """Write the parameter files of the hydraulic manipulator scene (paper Sec. 4.1, Table 2).
 
 mechanics.ssv   the manipulator FMU: body data of Table 2 and the geometry chosen for it
-                (models/mechanism/parameters.py, table2()), cylinder forces (actuation 1).
+                (models/mechanism/parameters.py, table2()), cylinder forces (actuation 1),
+                and the cylinders' seal friction as joint damping (ours: Table 2 has none).
 actuators.ssv   the hydraulics FMU: Table 2's hydraulic data converted to SI
                 (kN/m^2 -> Pa, MN/m^2 -> Pa, flow coefficient -> m^3/(s m Pa^0.5)).
 
@@ -35,6 +36,11 @@ VOLUME_RIGHT = (1.23e-2, 3.28e-3, 3.28e-3)  # m^3
 FLOW_COEFFICIENT = (1.49e-3, 7.45e-4, 7.45e-4)  # l/s per (mm sqrt(kN/m^2)), see fmus/hydraulics/model.c
 KV_SCALE = math.sqrt(1e-3)  # -> m^3/(s m Pa^0.5)
 
+# Viscous seal friction of each cylinder, N s/m (our assumption, README.md): 1.5 kN at a piston
+# speed of 10 mm/s, 0.6-0.7 % of the stall forces A p_s.  It damps the three hydro-mechanical
+# modes to zeta = 0.08-0.14.
+SEAL_FRICTION = 1.5e5
+
 
 def mechanics() -> dict[str, float | int]:
     """Manipulator FMU parameters of Table 2 from models/mechanism/parameters.py."""
@@ -43,7 +49,37 @@ def mechanics() -> dict[str, float | int]:
     )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.table2()
+    p = module.table2()
+    for k, arm in enumerate(lever_arms(p)):
+        p[f"damping{k + 1}"] = SEAL_FRICTION * arm**2
+    return p
+
+
+def lever_arms(p: dict[str, float | int]) -> list[float]:
+    """dl_k/dq_k (m/rad) of cylinder k about joint k in the start pose.
+
+    Cylinder k joins body k to body k + 1, so its length depends on q_k alone and its seal
+    friction -b dl/dt acts on joint k as the viscous damping b (dl_k/dq_k)^2 (N m s/rad).
+    Joint 1 turns about z through the origin, joints 2 and 3 about x through J2 and the
+    elbow C = J2 + (0, j3_y, j3_z); cylinder points are global in the table pose, which must
+    be the start pose.
+    """
+    if any(p[f"q{k}_0"] != p[f"q{k}_table"] for k in (1, 2, 3)):
+        raise ValueError("lever arms: the start pose must be the table pose")
+    j2 = (0.0, p["j2_y"], p["j2_z"])
+    joints = [((0.0, 0.0, 1.0), (0.0, 0.0, 0.0)), ((1.0, 0.0, 0.0), j2),
+              ((1.0, 0.0, 0.0), (0.0, j2[1] + p["j3_y"], j2[2] + p["j3_z"]))]  # fmt: skip
+    arms = []
+    for k, (axis, centre) in enumerate(joints, start=1):
+        a = [p[f"cyl{k}_a{c}"] for c in "xyz"]
+        b = [p[f"cyl{k}_b{c}"] for c in "xyz"]
+        if (p[f"cyl{k}_body_a"], p[f"cyl{k}_body_b"]) != (k, k + 1):
+            raise ValueError(f"lever arms: cylinder {k} must join bodies {k} and {k + 1}")
+        r = [b[i] - centre[i] for i in range(3)]
+        vel = [axis[1] * r[2] - axis[2] * r[1], axis[2] * r[0] - axis[0] * r[2], axis[0] * r[1] - axis[1] * r[0]]
+        d = [b[i] - a[i] for i in range(3)]
+        arms.append(abs(sum(vel[i] * d[i] for i in range(3))) / math.sqrt(sum(x * x for x in d)))
+    return arms
 
 
 def hydraulics() -> dict[str, float]:
