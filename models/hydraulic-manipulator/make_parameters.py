@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+import numpy as np
 from lxml import etree
 
 HERE = Path(__file__).resolve().parent
@@ -66,19 +67,17 @@ def lever_arms(p: dict[str, float | int]) -> list[float]:
     """
     if any(p[f"q{k}_0"] != p[f"q{k}_table"] for k in (1, 2, 3)):
         raise ValueError("lever arms: the start pose must be the table pose")
-    j2 = (0.0, p["j2_y"], p["j2_z"])
-    joints = [((0.0, 0.0, 1.0), (0.0, 0.0, 0.0)), ((1.0, 0.0, 0.0), j2),
-              ((1.0, 0.0, 0.0), (0.0, j2[1] + p["j3_y"], j2[2] + p["j3_z"]))]  # fmt: skip
+    j2 = np.array([0.0, p["j2_y"], p["j2_z"]])
+    x_axis, z_axis = np.eye(3)[0], np.eye(3)[2]
+    joints = [(z_axis, np.zeros(3)), (x_axis, j2), (x_axis, j2 + [0.0, p["j3_y"], p["j3_z"]])]
     arms = []
     for k, (axis, centre) in enumerate(joints, start=1):
-        a = [p[f"cyl{k}_a{c}"] for c in "xyz"]
-        b = [p[f"cyl{k}_b{c}"] for c in "xyz"]
         if (p[f"cyl{k}_body_a"], p[f"cyl{k}_body_b"]) != (k, k + 1):
             raise ValueError(f"lever arms: cylinder {k} must join bodies {k} and {k + 1}")
-        r = [b[i] - centre[i] for i in range(3)]
-        vel = [axis[1] * r[2] - axis[2] * r[1], axis[2] * r[0] - axis[0] * r[2], axis[0] * r[1] - axis[1] * r[0]]
-        d = [b[i] - a[i] for i in range(3)]
-        arms.append(abs(sum(vel[i] * d[i] for i in range(3))) / math.sqrt(sum(x * x for x in d)))
+        a = np.array([p[f"cyl{k}_a{c}"] for c in "xyz"])
+        b = np.array([p[f"cyl{k}_b{c}"] for c in "xyz"])
+        # b moves at axis x (b - centre) per unit joint rate; the length changes along b - a
+        arms.append(float(abs(np.cross(axis, b - centre) @ (b - a)) / np.linalg.norm(b - a)))
     return arms
 
 
