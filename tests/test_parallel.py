@@ -154,10 +154,15 @@ def test_source_history_long_enough_for_a_higher_order_consumer():
     assert np.max(np.abs(d["c1.u"][4:] + 0.5 * np.exp(-(t - H / 3)))) < 1e-8
 
 
-def test_gauss_seidel_levels():
-    sc = lags(3, coupling="gauss-seidel", order=("c0", "c1", "c2"))
+def test_gauss_seidel_levels_and_recorded_locals():
+    """Gauss-Seidel: one level per component; recorded Integer and local Real come from the workers."""
+    rec = (("c0", "y"), ("c2", "y"), ("c1", "der(y)"), ("c2", "mode"), ("c0", "cost_us"))
+    sc = lags(
+        3, coupling="gauss-seidel", order=("c0", "c1", "c2"), record=rec, record_interval=Fraction(1, 20)
+    )
     assert levels(api.plan(sc)) == {"c0": 0, "c1": 1, "c2": 2}
-    assert_identical(sc)
+    d = assert_identical(sc)
+    assert np.all(d["c2.mode"] == 0) and np.ptp(d["c1.der(y)"]) > 0.1
 
 
 @pytest.mark.parametrize("scene", ["dc-motor-arm", "hydraulic-manipulator"])
