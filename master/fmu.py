@@ -25,6 +25,7 @@ INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32
 
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a failure
+NO_STATE_RESTORED = ctypes.c_int(1)  # doStep's noSetFMUStatePriorToCurrentPoint
 # FMI function behind each raw call, for error messages
 RAW_NAMES = {
     "2": {
@@ -262,7 +263,9 @@ class Fmu:
         """Bind the FMI functions the stepping loop calls, without fmpy's per-call wrapper.
 
         Each raw_* takes the instance `handle` first and returns the FMI status (an int); get/set
-        take (vrs array, count as c_size_t, double pointer) as prepared by `RealPort`.
+        take (vrs array, count as c_size_t, double pointer) as prepared by `RealPort`; do_step
+        takes (t, h) as c_double (s) and c_int 1 (no state restored before t): ctypes objects
+        throughout, so that no argument needs converting.
         """
         dll = self.slave.dll
         self.handle = ctypes.c_void_p(self.slave.component)
@@ -277,9 +280,7 @@ class Fmu:
             self.raw_get_real = fn("fmi2GetReal")
             self.raw_set_real = fn("fmi2SetReal")
             self.raw_set_input_derivatives = fn("fmi2SetRealInputDerivatives")
-            self.raw_do_step = fn(
-                "fmi2DoStep", [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
-            )
+            self.raw_do_step = fn("fmi2DoStep")
             return
         get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")
         step3 = fn(
@@ -298,10 +299,10 @@ class Fmu:
         def set_real(handle, vrs, count, ptr) -> int:
             return set3(handle, vrs, count, ptr, count)
 
-        def do_step(handle, t: float, h: float, no_set_prior: int) -> int:
-            status = step3(handle, t, h, bool(no_set_prior), *refs)
+        def do_step(handle, t: ctypes.c_double, h: ctypes.c_double, no_set_prior: ctypes.c_int) -> int:
+            status = step3(handle, t, h, bool(no_set_prior.value), *refs)
             if status <= OK_STATUS and flags[1].value:  # terminateSimulation
-                raise FmuError(self.describe(f"asked to terminate at t={t + h}"))
+                raise FmuError(self.describe(f"asked to terminate at t={t.value + h.value}"))
             return status
 
         self.raw_get_real, self.raw_set_real, self.raw_do_step = get_real, set_real, do_step
@@ -431,7 +432,7 @@ class Fmu:
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from communication point t by h (s); FmuError if the FMU refuses."""
-        status = self.raw_do_step(self.handle, t, h, 1)
+        status = self.raw_do_step(self.handle, ctypes.c_double(t), ctypes.c_double(h), NO_STATE_RESTORED)
         if status > OK_STATUS:
             raise self.call_error("do_step", status)
 

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from master.coupling import History, LinkBlock, stimulus_span, stimulus_value, weights
-from master.fmu import OK_STATUS, Fmu, FmuError
+from master.fmu import NO_STATE_RESTORED, OK_STATUS, Fmu, FmuError
 from master.scenario.model import Component, Scenario
 from master.schedule import Link, Plan, PlanComponent
 
@@ -211,7 +211,13 @@ class ComponentRunner:
         self._args = (self.inp.vrs, self.inp.count, self.out.vrs, self.out.count, *d[:3])
         self._flags = (self.inp.n > 0, self.out.n > 0, self.feedthrough, self._deriv is not None, self.reads)
         self._pointers = (self._u_rows[0], self._u_rows[-1], d[3], rows)
-        self._steps = (self.clock.num0, self.clock.dnum, self.clock.den, self.h, self.pc.ratio)
+        self._steps = (
+            self.clock.num0,
+            self.clock.dnum,
+            self.clock.den,
+            ctypes.c_double(self.h),
+            self.pc.ratio,
+        )
         self._rows_of = buf
 
     # -- inputs ---------------------------------------------------------------------------------
@@ -305,7 +311,7 @@ class ComponentRunner:
                     raise fmu.call_error("set_real", st)
                 if deriv and (st := set_deriv(c, dvrs, dcount, dorders, dptrs[m])) > OK_STATUS:
                     raise fmu.call_error("set_input_derivatives", st)
-                if (st := do_step(c, t, h, 1)) > OK_STATUS:
+                if (st := do_step(c, c_double(t), h, NO_STATE_RESTORED)) > OK_STATUS:
                     raise fmu.call_error("do_step", st)
                 if feedthrough and (st := set_real(c, ivrs, icount, u1[m])) > OK_STATUS:
                     raise fmu.call_error("set_real", st)
@@ -414,3 +420,4 @@ def _start_value(fmu: Fmu, var: str) -> float:
 
 
 perf = time.perf_counter
+c_double = ctypes.c_double
