@@ -242,19 +242,19 @@ class ComponentRunner:
             v, a, b = stimulus_span(s, t0, start)
             lo, hi = max(lo, a), min(hi, b)
             u[:, :nv, slot] = v
-        if lo <= t0:  # u holds the values up to the first point at or after hi
-            if hi == np.inf:
-                i1 = sys.maxsize
-            else:
-                i1 = max(j0, math.ceil((hi * clock.den - clock.num0) / clock.dnum))  # estimate, then exact
-                while i1 > j0 and clock.time(i1 - 1) >= hi:
-                    i1 -= 1
-                while clock.time(i1) < hi:
-                    i1 += 1
+        # these values hold from point j0 up to the first point at or after hi (lo <= t0 always)
+        if hi == np.inf:
+            i1 = sys.maxsize
+        else:
+            i1 = max(j0, math.ceil((hi * clock.den - clock.num0) / clock.dnum))  # estimate, then exact
+            while i1 > j0 and clock.time(i1 - 1) >= hi:
+                i1 -= 1
+            while clock.time(i1) < hi:
+                i1 += 1
+        if j0 + self._stim_last < i1:  # for the whole macro step: u keeps them until then
             self._stim_steps = (j0, i1)
-            if j0 + self._stim_last < i1:
-                return
-        self._stim_steps = (1, 0)
+            return
+        self._stim_steps = (1, 0)  # they change within the macro step: point by point
         for m in range(self.pc.ratio):
             for b in range(nv):
                 t = clock.time(j0 + m + b)
