@@ -15,7 +15,8 @@ scene with seal friction, Jacobi, order 2 (commit 0a0b89c):
 
     hydraulic, 5 doSteps per macro step        wall 0.077 s, overhead 10.3 us, RTF 39
     hydraulic, 1 doStep + polynomials to FMU   wall 0.067 s, overhead 10.7 us, RTF 45
-    the same with the runtime before vectorisation (fmpy wrappers, per-step polynomials):
+    the same with the runtime before vectorisation (per-step polynomials; fmpy's call
+    wrappers were counted as time inside the FMUs, which hid part of the overhead):
     hydraulic, 5 doSteps per macro step        wall 0.328 s, overhead 79.4 us, RTF 9.1
     hydraulic, 1 doStep + polynomials to FMU   wall 0.181 s, overhead 23.5 us, RTF 16.6
 
