@@ -3,11 +3,14 @@
 Two scenes, both with the mechanics on AB3 at the macro step H and the control side on
 explicit Euler at H / r:
 - the two-mass oscillator (force split, r = 10, Jacobi), where the linearisation is exact;
-- the hydraulic manipulator (r = 5, the scene's coupling: Gauss-Seidel, hydraulics first),
-  linearised at t = 0.1 s: its lightly damped hydro-mechanical modes are what the macro
+- the hydraulic manipulator (r = 5, the scene's coupling: Jacobi, as the paper ran it),
+  linearised at t = 0.1 s: its damped hydro-mechanical modes (zeta 0.08-0.14) are what the macro
   step must not destabilise.
 Predicted: bisection on the spectral radius of the macro-step map (master.evidence.linear).
-Measured: bisection on runs of the runtime (master.evidence.stability.measured_limit).
+Measured: bisection on runs of the runtime (master.evidence.stability.measured_limit).  On the
+hydraulic scene a run is stable if the ringing the valve steps excite dies out (see
+`ringing_dies_out`): an unstable run there grows into the pressure clamps within a fraction of
+a second and then rings at a constant amplitude, which the generic test reads as stable.
 
 Run: /work/venv/bin/python examples/paper_stability.py [--out docs/evidence]
 """
@@ -20,6 +23,8 @@ import dataclasses
 import math
 from fractions import Fraction
 from pathlib import Path
+
+import numpy as np
 
 from master.api import load_scenario, run
 from master.evidence.linear import AB3, EULER, largest_stable_step
@@ -55,8 +60,23 @@ def hydraulic_scene(sc, order: int, h: Fraction, stop: float = 2.0):
                                stop_time=h * math.ceil(Fraction(stop) / h))  # fmt: skip
 
 
+def ringing_dies_out(run_once) -> bool:
+    """Whether a hydraulic run finishes with the ringing of body 6 fading: max |a_z| over the
+    last quarter of the run below half of that over the first quarter.  The physical modes
+    decay by exp(-zeta omega t) with zeta omega >= 13 1/s, so a stable scheme passes by orders
+    of magnitude; only a scheme within a few per mille of its limit is judged too early."""
+    from master.backends.component import SimulationError
+
+    try:
+        az = np.abs(np.asarray(run_once().data["mechanics.body6_az"], dtype=float))
+    except SimulationError:
+        return False
+    n = len(az) // 4
+    return bool(np.all(np.isfinite(az)) and az[-n:].max() < 0.5 * az[:n].max())
+
+
 def hydraulic_rows() -> list[list[str]]:
-    sc = load_scenario(HYDRAULIC)  # mechanics AB3 at H, hydraulics Euler at H / 5, Gauss-Seidel
+    sc = load_scenario(HYDRAULIC)  # mechanics AB3 at H, hydraulics Euler at H / 5, Jacobi
     lin = linearize(hydraulic_scene(sc, 1, Fraction(1, 1000)), t=0.1)
     rows = []
     for k in range(4):
@@ -72,7 +92,7 @@ def hydraulic_rows() -> list[list[str]]:
 
         lo = Fraction(0.5 * pred).limit_denominator(1000000)
         hi = Fraction(2.0 * pred).limit_denominator(1000000)
-        meas = float(measured_limit(make, lo, hi, rel_tol=0.03, max_den=1000000))
+        meas = float(measured_limit(make, lo, hi, rel_tol=0.03, max_den=1000000, is_stable=ringing_dies_out))
         rows.append(["hydraulic manipulator (AB3 H + Euler H/5)", str(k), f"{pred:.4g}", f"{meas:.4g}"])
     return rows
 

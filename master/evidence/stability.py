@@ -143,21 +143,26 @@ def run_is_stable(run: Callable[[], object]) -> bool:
     return True
 
 
+RunCheck = Callable[[Callable[[], object]], bool]  # judges one run: stable or not
+
+
 def measured_limit(make_run: Callable[[Fraction], Callable[[], object]], lo: Fraction, hi: Fraction,
-                   rel_tol: float = 0.02, max_den: int = 100000) -> Fraction:  # fmt: skip
+                   rel_tol: float = 0.02, max_den: int = 100000,
+                   is_stable: RunCheck = run_is_stable) -> Fraction:  # fmt: skip
     """Largest macro step in [lo, hi] (s) at which make_run(H)() is stable, by bisection.
 
-    lo must be stable; returns hi if hi is stable.
+    lo must be stable; returns hi if hi is stable.  is_stable judges one run (default
+    run_is_stable; a scene whose growth saturates early needs its own test).
     """
-    if not run_is_stable(make_run(lo)):
+    if not is_stable(make_run(lo)):
         raise ValueError(f"unstable already at the lower bound {float(lo):g} s")
-    if run_is_stable(make_run(hi)):
+    if is_stable(make_run(hi)):
         return hi
     while hi - lo > rel_tol * lo:
         mid = Fraction((lo + hi) / 2).limit_denominator(max_den)
         if mid in (lo, hi):
             break
-        if run_is_stable(make_run(mid)):
+        if is_stable(make_run(mid)):
             lo = mid
         else:
             hi = mid
