@@ -38,7 +38,7 @@ FLOW_COEFFICIENT = (1.49e-3, 7.45e-4, 7.45e-4)  # l/s per (mm sqrt(kN/m^2)), see
 KV_SCALE = math.sqrt(1e-3)  # -> m^3/(s m Pa^0.5)
 
 # Viscous seal friction of each cylinder, N s/m (our assumption, README.md): 1.5 kN at a piston
-# speed of 10 mm/s, 0.6-0.7 % of the stall forces A p_s.  It damps the three hydro-mechanical
+# speed of 10 mm/s, 0.56-0.70 % of the stall forces A p_s.  It damps the three hydro-mechanical
 # modes to zeta = 0.08-0.14.
 SEAL_FRICTION = 1.5e5
 
