@@ -132,9 +132,9 @@ def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
 
         return ParallelBackend(p, step_timeout=step_timeout or DEFAULT_STEP_TIMEOUT)
     if name == "auto":
-        from master.backends.parallel import choose_backend
+        from master.backends.parallel import DEFAULT_STEP_TIMEOUT, choose_backend
 
-        chosen, why = choose_backend(p)
+        chosen, why = choose_backend(p, step_timeout or DEFAULT_STEP_TIMEOUT)
         log.info("backend %s chosen automatically: %s", chosen, why)
         be = _make_backend(chosen, p, step_timeout)
         be.name = f"{chosen} (auto: {why})"

@@ -381,8 +381,11 @@ def predict_parallel(plan: Plan, cost: dict[str, float], sync: float, cpus: int)
     return total
 
 
-def choose_backend(plan: Plan) -> tuple[str, str]:
-    """("serial" or "parallel", why): measured serial cost per macro step vs predicted parallel cost."""
+def choose_backend(plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT) -> tuple[str, str]:
+    """("serial" or "parallel", why): measured serial cost per macro step vs predicted parallel cost.
+
+    The serial trial runs in a worker, so a crash or a hang (past `step_timeout` s) stays there.
+    """
     groups = worker_groups(plan)
     cpus = cpu_count()
     if len(groups) < 2:
@@ -396,7 +399,8 @@ def choose_backend(plan: Plan) -> tuple[str, str]:
     try:
         t0 = time.perf_counter()
         pool = WorkerPool(
-            [(["trial"], partial(_TrialTask, plan, out, tmp))] + [(["idle"], idle)] * (len(groups) - 1)
+            [(["trial"], partial(_TrialTask, plan, out, tmp))] + [(["idle"], idle)] * (len(groups) - 1),
+            step_timeout=step_timeout,
         )
         start = time.perf_counter() - t0
         try:
