@@ -3,10 +3,14 @@
 The workers run exactly the serial backend's per-component code (`ComponentRunner`): the
 output histories it reads and writes are numpy views on shared memory, so a consumer in one
 process extrapolates from the very samples its source wrote in another, and the results are
-bit for bit those of the serial backend.  Per macro step the master sends one command to all
-workers and waits once (`WorkerPool`); with Gauss-Seidel links (a source that must finish
-the macro step before its consumer starts it) the step runs in dependency levels, one
-synchronisation per level.
+bit for bit those of the serial backend.  The paper copies shared values into locals before
+a step so that a concurrent producer cannot change them; here each output ring holds k + p + 1
+samples (`history_capacity`), so a producer writing macro step n never touches the samples
+its consumers of order p are reading, and no copy is needed.
+
+Per macro step the master sends one command to all workers and waits once (`WorkerPool`);
+with Gauss-Seidel links (a source that must finish the macro step before its consumer
+starts it) the step runs in dependency levels, one synchronisation per level.
 
 A worker that crashes, hangs past the step timeout or raises ends the run with a
 `SimulationError` naming the component, the simulation time and the cause; the driver then
