@@ -37,9 +37,9 @@ from pathlib import Path
 import numpy as np
 
 import master.api as api
-from master.fmubuild import fmu_path
+from master.evidence.oscillator import scene
 from master.recorder import RunSummary
-from master.scenario.model import Component, Connection, Scenario
+from master.scenario.model import Scenario
 
 HYDRAULIC_SCENE = (
     Path(__file__).resolve().parent.parent / "models" / "hydraulic-manipulator" / "SystemStructure.ssd"
@@ -49,22 +49,8 @@ HYDRAULIC_STEP = 2e-4  # s: the paper's hydraulic integration step
 
 def oscillator(H: Fraction, stop: Fraction, order: int, interpolate: bool) -> Scenario:
     """The two-mass oscillator (parameter set A), one RK4 step per communication step."""
-    msd = fmu_path("msd")
-    return Scenario(
-        path=Path("oscillator (benchmarks/overhead.py)"),
-        name="oscillator",
-        components=(
-            Component("mass1", msd, {"solver": 4, "x0": 1.0}, 1, order, interpolate),
-            Component("mass2", msd, {"solver": 4, "cc": 1.0, "dc": 1.0}, 1, order, interpolate),
-        ),
-        connections=(
-            Connection("mass2", "F_c", "mass1", "F"),
-            Connection("mass1", "x", "mass2", "x_in"),
-            Connection("mass1", "v", "mass2", "v_in"),
-        ),
-        start_time=Fraction(0),
-        stop_time=stop,
-        macro_step=H,
+    return scene(
+        split="force", macro_step=H, stop_time=stop, order=order, interpolate=(interpolate, interpolate)
     )
 
 
@@ -131,7 +117,7 @@ CHILD = (
 
 
 def memory() -> None:
-    fmu_path("msd")
+    scene()  # builds the msd FMU before the timed subprocesses
     here = str(Path(__file__).parent)
     with tempfile.TemporaryDirectory() as d:
         peaks = {}

@@ -9,14 +9,12 @@ the coupling error.
 from __future__ import annotations
 
 from fractions import Fraction
-from pathlib import Path
 
 import numpy as np
 
 import master.api as api
-from master.evidence.oscillator import SET_A, SET_A_Z0
-from master.fmubuild import fmu_path
-from master.scenario.model import Component, Connection, Scenario
+from master.evidence.oscillator import SET_A, SET_A_Z0, scene
+from master.scenario.model import Scenario
 
 SUBSTEPS = 20  # RK4 steps inside each communication step of the FMUs
 
@@ -31,29 +29,16 @@ def oscillator(
     stop: Fraction = Fraction(10),
 ) -> Scenario:
     """The benchmark scene: mass1 (input F) and mass2 with the coupling (output F_c)."""
-    msd = fmu_path("msd")
-    k1, k2 = ratios
-    p1 = {"solver": 4, "internal_step": float(H / (k1 * SUBSTEPS)), "x0": 1.0}
-    p2 = {"solver": 4, "internal_step": float(H / (k2 * SUBSTEPS)), "cc": 1.0, "dc": 1.0}
-    m1 = Component(
-        "mass1", msd, p1, k1, order, interpolate if interpolate_mass1 is None else interpolate_mass1
-    )
-    m2 = Component("mass2", msd, p2, k2, order, interpolate)
-    return Scenario(
-        path=Path("oscillator (built in examples/oscillator.py)"),
-        name="two-mass oscillator",
-        components=(m1, m2),
-        connections=(
-            Connection("mass2", "F_c", "mass1", "F"),
-            Connection("mass1", "x", "mass2", "x_in"),
-            Connection("mass1", "v", "mass2", "v_in"),
-        ),
-        start_time=Fraction(0),
-        stop_time=stop,
+    first = interpolate if interpolate_mass1 is None else interpolate_mass1
+    return scene(
+        split="force",
         macro_step=H,
-        coupling=coupling,  # type: ignore[arg-type]
-        order=("mass1", "mass2"),
-        record=(("mass1", "x"), ("mass1", "v"), ("mass2", "x"), ("mass2", "v")),
+        stop_time=stop,
+        order=order,
+        step_ratios=ratios,
+        coupling=coupling,
+        interpolate=(first, interpolate),
+        substeps=SUBSTEPS,
     )
 
 

@@ -11,36 +11,23 @@ import numpy as np
 import pytest
 
 import master.api as api
-from master.evidence.oscillator import SET_A, SET_A_X1_10, SET_A_Z0
-from master.fmubuild import fmu_path
-from master.scenario.model import Component, Connection, Scenario
+from master.evidence.oscillator import SET_A, SET_A_X1_10, SET_A_Z0, scene
 
 STEPS = [Fraction(1, 10), Fraction(1, 20), Fraction(1, 40)]
 
 
 def oscillator(H, order, coupling="jacobi", ratios=(1, 1), interpolate=(True, True), stop=Fraction(10)):
-    msd = fmu_path("msd")
-    k1, k2 = ratios
-    p1 = {"solver": 4, "internal_step": float(H / (20 * k1)), "x0": 1.0}
-    p2 = {"solver": 4, "internal_step": float(H / (20 * k2)), "cc": 1.0, "dc": 1.0}
-    return Scenario(
-        path=Path("oscillator.ssd"),
-        name="oscillator",
-        components=(
-            Component("mass1", msd, p1, k1, order, interpolate[0]),
-            Component("mass2", msd, p2, k2, order, interpolate[1]),
-        ),
-        connections=(
-            Connection("mass2", "F_c", "mass1", "F"),
-            Connection("mass1", "x", "mass2", "x_in"),
-            Connection("mass1", "v", "mass2", "v_in"),
-        ),
-        start_time=Fraction(0),
-        stop_time=stop,
+    """The benchmark, force split, RK4 with 20 internal steps per communication step."""
+    return scene(
+        split="force",
         macro_step=H,
+        stop_time=stop,
+        order=order,
+        step_ratios=ratios,
         coupling=coupling,
-        order=("mass1", "mass2"),
-        record=(("mass1", "x"), ("mass1", "v")),
+        interpolate=interpolate,
+        substeps=20,
+        path=Path("oscillator.ssd"),
     )
 
 

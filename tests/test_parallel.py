@@ -20,6 +20,7 @@ import pytest
 import master.api as api
 from master.backends.component import SimulationError
 from master.backends.parallel import ParallelBackend, choose_backend, levels, worker_groups
+from master.evidence.oscillator import scene
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
 
@@ -47,27 +48,16 @@ def assert_no_children() -> None:
 
 def oscillator(H=Fraction(1, 100), order=2, coupling="jacobi", ratios=(1, 1), interpolate=(True, True)):
     """Two-mass oscillator, parameter set A, split in two msd FMUs (as tests/test_oscillator.py)."""
-    msd = fmu_path("msd")
-    k1, k2 = ratios
-    p1 = {"solver": 4, "internal_step": float(H / (20 * k1)), "x0": 1.0}
-    p2 = {"solver": 4, "internal_step": float(H / (20 * k2)), "cc": 1.0, "dc": 1.0}
-    return Scenario(
-        path=Path("oscillator.ssd"),
-        name="oscillator",
-        components=(
-            Component("mass1", msd, p1, k1, order, interpolate[0]),
-            Component("mass2", msd, p2, k2, order, interpolate[1]),
-        ),
-        connections=(
-            Connection("mass2", "F_c", "mass1", "F"),
-            Connection("mass1", "x", "mass2", "x_in"),
-            Connection("mass1", "v", "mass2", "v_in"),
-        ),
-        start_time=Fraction(0),
-        stop_time=Fraction(3),
+    return scene(
+        split="force",
         macro_step=H,
+        stop_time=Fraction(3),
+        order=order,
+        step_ratios=ratios,
         coupling=coupling,
-        order=("mass1", "mass2"),
+        interpolate=interpolate,
+        substeps=20,
+        path=Path("oscillator.ssd"),
     )
 
 

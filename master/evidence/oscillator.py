@@ -124,10 +124,15 @@ def scene(
     step_ratios: tuple[int, int] = (1, 1),
     z0: np.ndarray = SET_A_Z0,
     path: Path | None = None,
+    coupling: str = "jacobi",
+    interpolate: tuple[bool, bool] = (False, False),
+    substeps: int = 0,
 ):
     """The benchmark as a Scenario of two msd FMUs (the split as in `split_scheme`).
 
-    Records x and v of both masses.  path: the scenario's file name (default: the msd model source).
+    Records x and v of both masses.  coupling: "jacobi" or "gauss-seidel" (mass1 first);
+    interpolate: hand the input polynomials to mass1 / mass2; substeps: solver steps inside each
+    communication step (0: one); path: the scenario's file name (default: the msd model source).
     """
     from master.fmubuild import fmu_path
     from master.scenario.model import Component, Connection, Scenario
@@ -140,7 +145,9 @@ def scene(
         params = {"m": m, "c": c, "d": d, "x0": float(z0[2 * i]), "v0": float(z0[2 * i + 1]),
                   "cc": p.cc if has_coupling else 0.0, "dc": p.dc if has_coupling else 0.0,
                   "solver": solvers[i], "internal_step": 0.0}  # fmt: skip
-        comps.append(Component(name, fmu, params, step_ratio=step_ratios[i], extrapolation_order=order))
+        if substeps:
+            params["internal_step"] = float(Fraction(macro_step) / (step_ratios[i] * substeps))
+        comps.append(Component(name, fmu, params, step_ratios[i], order, interpolate[i]))
     conns = [Connection("mass1", "x", "mass2", "x_in"), Connection("mass1", "v", "mass2", "v_in")]
     if coupled:
         conns += [Connection("mass2", "x", "mass1", "x_in"), Connection("mass2", "v", "mass1", "v_in")]
@@ -151,4 +158,4 @@ def scene(
     record = tuple((c, v) for c in ("mass1", "mass2") for v in ("x", "v"))
     src = path or Path(__file__).resolve().parents[2] / "fmus" / "msd" / "model.c"
     return Scenario(src, f"oscillator-{split}", tuple(comps), tuple(conns), Fraction(0), Fraction(stop_time),
-                    Fraction(macro_step), record=record)  # fmt: skip
+                    Fraction(macro_step), coupling, ("mass1", "mass2"), record=record)  # fmt: skip
