@@ -16,6 +16,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from master.fmubuild import fmu_path
+from master.scenario.ssv import read_ssv
 
 EULER, AB3, SI_EULER, SI_MIDPOINT = 1, 3, 5, 6
 R, L, KE, KT = 5.0, 0.02, 0.5, (20.0, 15.0, 10.0)  # Table 3
@@ -186,7 +187,7 @@ def test_analytic_jacobian_equals_finite_differences(motor):
 @pytest.fixture(scope="module")
 def controller():
     """Parameters of the checked-in controller.ssv and the set point z* they hold."""
-    params = pp.read_ssv(SCENE / "controller.ssv")
+    params = read_ssv(SCENE / "controller.ssv")
     z_ref = np.concatenate([pp.Q_REF, np.zeros(3), [params[f"i_ref{k}"] for k in (1, 2, 3)]])
     return params, z_ref
 

@@ -18,6 +18,7 @@ from fmpy.fmi2 import FMU2Model, FMU2Slave
 from scipy.integrate import solve_ivp
 
 from master.fmubuild import fmu_path
+from master.scenario.ssv import SSV_NS
 
 EULER, SI_EULER, SI_MIDPOINT = 1, 5, 6
 PS, BETA = 1.38e7, 1.03e9  # Table 2 supply pressure and bulk modulus (Pa)
@@ -317,7 +318,7 @@ def test_holding_pressures_hold_the_table2_arm_at_rest(fmu):
     spec = importlib.util.spec_from_file_location("holding_pressures", scene / "holding_pressures.py")
     hp = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(hp)
-    ns = {"ssv": hp.SSV_NS}
+    ns = {"ssv": SSV_NS}
     root = etree.parse(str(scene / "hydraulics.ssv")).getroot()
     stored = {
         p.get("name"): float(p.find("ssv:Real", ns).get("value"))

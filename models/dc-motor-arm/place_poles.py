@@ -22,17 +22,17 @@ import shutil
 import sys
 import warnings
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model
 from scipy.signal import place_poles
 
+from master.scenario.ssv import write_ssv
+
 HERE = Path(__file__).resolve().parent
 SSV_PATH = HERE / "controller.ssv"
 ARM_PARAMETERS = HERE.parent / "mechanism" / "table3.json"  # the arm of Table 3, joint torques
-SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 
 Q_REF = np.radians([0.0, 45.0, 300.0])  # rad, the paper's set point
 MOTOR = {"R": 5.0, "L": 0.02, "Ke": 0.5, "Kt1": 20.0, "Kt2": 15.0, "Kt3": 10.0}  # Table 3
@@ -293,40 +293,11 @@ def design(manipulator: Path, motor: Path) -> dict[str, float]:
     return params
 
 
-def write_ssv(path: Path, params: dict[str, float]) -> None:
-    """Write `params` as an SSP 1.0 ParameterValues file (all Real)."""
-    lines = [
-        '<?xml version="1.0" encoding="UTF-8"?>',
-        f'<ssv:ParameterSet xmlns:ssv="{SSV_NS}" version="1.0" name="dc-motor-arm controller">',
-        "  <ssv:Parameters>",
-    ]
-    for name, value in params.items():
-        lines.append(
-            f'    <ssv:Parameter name={quoteattr(name)}><ssv:Real value="{float(value)!r}"/></ssv:Parameter>'
-        )
-    lines += ["  </ssv:Parameters>", "</ssv:ParameterSet>", ""]
-    path.write_text("\n".join(lines), encoding="utf-8")
-
-
-def read_ssv(path: Path) -> dict[str, float]:
-    """Real parameters of an SSP ParameterValues file."""
-    from lxml import etree
-
-    root = etree.parse(str(path)).getroot()
-    out = {}
-    for p in root.iter(f"{{{SSV_NS}}}Parameter"):
-        real = p.find(f"{{{SSV_NS}}}Real")
-        if real is None:
-            raise ValueError(f"{path}: parameter {p.get('name')!r} is not Real")
-        out[p.get("name")] = float(real.get("value"))
-    return out
-
-
 def main() -> int:
     from master.fmubuild import fmu_path
 
     params = design(fmu_path("manipulator"), fmu_path("dcmotor"))
-    write_ssv(SSV_PATH, params)
+    write_ssv(SSV_PATH, "dc-motor-arm controller", params, generated_by="dc-motor-arm/place_poles.py")
     k = np.array([[params[f"K_{r}_{c}"] for c in range(1, 10)] for r in range(1, 4)])
     np.set_printoptions(precision=4, suppress=True, linewidth=140)
     print(f"holding currents (A): {[round(params[f'i_ref{k}'], 6) for k in (1, 2, 3)]}")

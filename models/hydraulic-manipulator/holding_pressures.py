@@ -22,16 +22,16 @@ import json
 import shutil
 import sys
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model
 
+from master.scenario.ssv import write_ssv
+
 HERE = Path(__file__).resolve().parent
 ARM_PARAMETERS = HERE.parent / "mechanism" / "table2.json"
 SSV_PATH = HERE / "hydraulics.ssv"
-SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 P_SUPPLY, P_TANK = 1.38e7, 0.0  # Pa, Table 2 and the FMU's default
 AREA = (1.94e-2, 1.55e-2, 1.55e-2)  # m^2, Table 2
 _P = ctypes.POINTER(ctypes.c_double)
@@ -101,27 +101,17 @@ def pressures(force: np.ndarray) -> dict[str, float]:
     return out
 
 
-def write_ssv(path: Path, params: dict[str, float]) -> None:
-    """Write `params` as an SSP 1.0 ParameterValues file (all Real)."""
-    lines = [
-        '<?xml version="1.0" encoding="UTF-8"?>',
-        f'<ssv:ParameterSet xmlns:ssv="{SSV_NS}" version="1.0" name="hydraulics holding pressures">',
-        "  <ssv:Parameters>",
-    ]
-    for name, value in params.items():
-        lines.append(
-            f'    <ssv:Parameter name={quoteattr(name)}><ssv:Real value="{float(value)!r}"/></ssv:Parameter>'
-        )
-    lines += ["  </ssv:Parameters>", "</ssv:ParameterSet>", ""]
-    path.write_text("\n".join(lines), encoding="utf-8")
-
-
 def main() -> int:
     from master.fmubuild import fmu_path
 
     params = json.loads(ARM_PARAMETERS.read_text(encoding="utf-8"))
     force = holding_forces(fmu_path("manipulator"), params)
-    write_ssv(SSV_PATH, pressures(force))
+    write_ssv(
+        SSV_PATH,
+        "hydraulics holding pressures",
+        pressures(force),
+        generated_by="hydraulic-manipulator/holding_pressures.py",
+    )
     print(f"holding forces (N): {np.round(force, 3).tolist()}")
     print(f"wrote {SSV_PATH}")
     return 0
