@@ -275,6 +275,19 @@ class ComponentRunner:
             self.fmu_time += perf() - t0
         self.history.push(0, self.out.values)
 
+    def exit_initialization(self) -> None:
+        """Leave initialisation mode; a failure is named with the component and the start time."""
+        self.fmu_call(0, self.fmu.exit_initialization)
+
+    def fmu_call(self, n: int, fn, *args):
+        """fn(*args) for an FMU call outside stepping (state save/restore, exit of initialisation);
+        a failure becomes a SimulationError naming the component and the start of macro step n."""
+        try:
+            return fn(*args)
+        except FmuError as e:
+            t = self.clock.time(n * self.pc.ratio)
+            raise SimulationError(f"{e} at t={t}", self.name, t) from e
+
     def _fill_initial(self, histories: dict[str, History]) -> None:
         vals = self.inp.values
         for il in self.links:

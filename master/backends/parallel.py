@@ -131,31 +131,22 @@ class _GroupTask:
             if op == OP_SWEEP:
                 r.initial_sweep(self.histories)
             elif op == OP_EXIT_INIT:
-                self._exit_init(r)
+                r.exit_initialization()
             elif op == OP_STEP:
                 r.macro_step(a, self.histories)
                 if a >= self.plan.startup_steps and record_due(self.plan, a):
                     r.record(a, rec)
             elif op == OP_SAVE:
-                self.saved[r.name] = _state_call(r, a, r.fmu.get_state)
+                self.saved[r.name] = r.fmu_call(a, r.fmu.get_state)
             elif op == OP_RELAXED:
-                _state_call(r, a, r.fmu.set_state, self.saved[r.name])
+                r.fmu_call(a, r.fmu.set_state, self.saved[r.name])
                 r.macro_step(a, self.previous, relaxed=True)
             elif op == OP_FREE:
-                _state_call(r, a, r.fmu.free_state, self.saved.pop(r.name))
+                r.fmu_call(a, r.fmu.free_state, self.saved.pop(r.name))
             elif op == OP_RECORD:
                 r.record(a, rec)
             steps[k] = r.steps
             fmu_time[k] = r.fmu_time
-
-    @staticmethod
-    def _exit_init(r: ComponentRunner) -> None:
-        """As the serial backend does between its two rounds of sweeps."""
-        try:
-            r.fmu.exit_initialization()
-        except FmuError as e:
-            t = r.clock.time(0)
-            raise SimulationError(f"{e} at t={t}", r.name, t) from e
 
     def close(self) -> None:
         for r in self.runners:
@@ -300,15 +291,6 @@ class ParallelBackend:
             if self.tmp is not None:
                 shutil.rmtree(self.tmp, ignore_errors=True)
                 self.tmp = None
-
-
-def _state_call(r: ComponentRunner, n: int, fn, *args):
-    """An FMU state call of the start-up, failures named as SerialBackend names them."""
-    try:
-        return fn(*args)
-    except FmuError as e:
-        t = r.clock.time(n * r.pc.ratio)
-        raise SimulationError(f"{e} at t={t}", r.name, t) from e
 
 
 def cpu_count() -> int:

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from master.backends.component import ComponentRunner, SimulationError, open_fmu, output_names
+from master.backends.component import ComponentRunner, open_fmu, output_names
 from master.coupling import History
-from master.fmu import Fmu, FmuError
+from master.fmu import Fmu
 from master.schedule import Plan
 
 
@@ -52,11 +52,7 @@ class SerialBackend:
             for r in self.runners:
                 r.initial_sweep(self.histories)
         for r in self.runners:
-            try:
-                r.fmu.exit_initialization()
-            except FmuError as e:
-                t = r.clock.time(0)
-                raise SimulationError(f"{e} at t={t}", r.name, t) from e
+            r.exit_initialization()
         for _ in range(len(self.runners)):
             for r in self.runners:
                 r.initial_sweep(self.histories)
@@ -68,26 +64,18 @@ class SerialBackend:
             for r in self.runners:
                 r.macro_step(n, histories)
             return
-        saved = {r.name: self._call(r, n, r.fmu.get_state) for r in self.runners}
+        saved = {r.name: r.fmu_call(n, r.fmu.get_state) for r in self.runners}
         try:
             for r in self.runners:
                 r.macro_step(n, self.histories)
             for _ in range(self.plan.startup_sweeps):
                 previous = {r.name: r.history.copy() for r in self.runners}
                 for r in self.runners:
-                    self._call(r, n, r.fmu.set_state, saved[r.name])
+                    r.fmu_call(n, r.fmu.set_state, saved[r.name])
                     r.macro_step(n, previous, relaxed=True)
         finally:
             for r in self.runners:
-                self._call(r, n, r.fmu.free_state, saved[r.name])
-
-    def _call(self, r: ComponentRunner, n: int, fn, *args):
-        """An FMU state call of the start-up, failures named with component and time."""
-        try:
-            return fn(*args)
-        except FmuError as e:
-            t = r.clock.time(n * r.pc.ratio)
-            raise SimulationError(f"{e} at t={t}", r.name, t) from e
+                r.fmu_call(n, r.fmu.free_state, saved[r.name])
 
     def record(self, n: int, row: np.ndarray) -> None:
         """Recorded values at the end of macro step n (n = -1: start time) into row[1:]."""
