@@ -22,8 +22,7 @@ from pathlib import Path
 
 from master.api import load_scenario, run
 from master.backends.component import SimulationError
-from master.evidence.bench import as_trajectory
-from master.evidence.errors import compare
+from master.evidence.errors import as_trajectory, compare
 from master.evidence.linear import largest_stable_step, spectral_radius
 from master.evidence.reference import reference
 from master.evidence.stability import linearize, measured_limit

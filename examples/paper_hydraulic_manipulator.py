@@ -25,8 +25,7 @@ import numpy as np
 
 from master.api import load_scenario, run
 from master.backends.component import SimulationError
-from master.evidence.bench import as_trajectory
-from master.evidence.errors import compare
+from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import reference
 from master.scenario.model import Scenario
 

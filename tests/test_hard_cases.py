@@ -14,8 +14,7 @@ import pytest
 
 from master.api import run
 from master.backends.component import SimulationError
-from master.evidence.bench import as_trajectory
-from master.evidence.errors import compare
+from master.evidence.errors import as_trajectory, compare
 from master.evidence.linear import (
     AB3,
     EULER,

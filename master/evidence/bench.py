@@ -29,9 +29,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
-import numpy as np
-
-from master.evidence.errors import Trajectory, compare
+from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import reference
 from master.evidence.stability import linearize
@@ -222,14 +220,6 @@ def base_scene(sc: Scenario, p: Profile) -> Scenario:
         macro_step=p.record_interval,
         record_interval=p.record_interval,
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
-    )
-
-
-def as_trajectory(data: np.ndarray) -> Trajectory:
-    """A run's structured result array as a Trajectory."""
-    names = [n for n in data.dtype.names if n != "time"]
-    return Trajectory(
-        np.asarray(data["time"], dtype=float), {n: np.asarray(data[n], dtype=float) for n in names}
     )
 
 

@@ -35,6 +35,14 @@ class Trajectory:
                 raise ValueError(f"variable {name!r}: {np.size(v)} values for {np.size(self.time)} times")
 
 
+def as_trajectory(data: np.ndarray) -> Trajectory:
+    """A run's structured result array (time + "component.variable" columns) as a Trajectory."""
+    names = [n for n in data.dtype.names if n != "time"]
+    return Trajectory(
+        np.asarray(data["time"], dtype=float), {n: np.asarray(data[n], dtype=float) for n in names}
+    )
+
+
 @dataclass(frozen=True)
 class ErrorReport:
     """Scaled errors (dimensionless: fraction of the reference's range) per variable and worst."""

@@ -6,6 +6,10 @@ rtol 1e-10) advances the concatenated states of all components monolithically, p
 between stimulus break points so that step inputs do not smear.  Direct-feedthrough outputs
 are read after the producer's inputs are set, in topological order of the components.
 
+Where a component has no Model Exchange interface, the reference is a converged co-simulation
+instead: the scene's own scheme run with the macro step halved until two successive results
+agree to a tolerance (`converged_cosimulation`); the convergence table goes to the log.
+
 Results are cached in build/reference-cache/, keyed by a hash of the scenario file, the
 overrides, the integration settings and the FMU files.
 """
@@ -16,8 +20,9 @@ import ctypes
 import hashlib
 import json
 import shutil
+import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
 
@@ -26,7 +31,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model
 from scipy.integrate import solve_ivp
 
-from master.evidence.errors import Trajectory
+from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.scenario.model import Scenario, Stimulus
 
 CACHE_DIR = Path(__file__).resolve().parents[2] / "build" / "reference-cache"
@@ -287,6 +292,57 @@ def cache_key(scenario: Scenario, overrides: dict | None, settings: dict) -> str
     return h.hexdigest()[:32]
 
 
+def has_model_exchange(scenario: Scenario) -> bool:
+    """Whether every component's FMU offers a Model Exchange interface."""
+    return all(read_model_description(str(c.fmu_path)).modelExchange is not None for c in scenario.components)
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """How a converged co-simulation got there: macro steps (s) and the worst scaled change
+    between each run and the one before (fraction of the variable's range)."""
+
+    macro_steps: tuple[Fraction, ...]
+    changes: tuple[float, ...]
+
+    def observed_order(self) -> float:
+        """log2 of the ratio of the last two changes (nan with fewer than two)."""
+        if len(self.changes) < 2 or self.changes[-1] <= 0:
+            return float("nan")
+        return float(np.log2(self.changes[-2] / self.changes[-1]))
+
+    def table(self) -> str:
+        pairs = zip(self.macro_steps[1:], self.changes, strict=True)
+        rows = [f"  H = {float(h):.6g} s: change {c:.3e}" for h, c in pairs]
+        return "\n".join(rows + [f"  observed order {self.observed_order():.2f}"])
+
+
+def converged_cosimulation(
+    scenario: Scenario, grid_step: Fraction | None = None, tol: float = 1e-6, max_halvings: int = 12
+) -> tuple[Trajectory, Convergence]:
+    """The scene's co-simulation with its macro step halved until two successive results differ by
+    at most `tol` (worst scaled max difference) on the record grid; the finest run and the table.
+
+    Raises RuntimeError if `max_halvings` halvings do not get there.
+    """
+    from master import api  # the runtime; imported here since it is heavy and optional for ME scenes
+
+    step = Fraction(grid_step or scenario.record_interval or scenario.macro_step)
+    previous, steps, changes = None, [], []
+    for j in range(max_halvings + 1):
+        h = scenario.macro_step / 2**j
+        traj = as_trajectory(api.run(replace(scenario, macro_step=h, record_interval=step)).data)
+        steps.append(h)
+        if previous is not None:
+            changes.append(compare(traj, previous).worst_max)
+            if changes[-1] <= tol:
+                return traj, Convergence(tuple(steps), tuple(changes))
+        previous = traj
+    conv = Convergence(tuple(steps), tuple(changes))
+    what = f"co-simulation did not converge to {tol:g} in {max_halvings} halvings"
+    raise RuntimeError(f"{scenario.path}: {what}:\n{conv.table()}")
+
+
 def reference(
     scenario: Scenario,
     overrides: dict | None = None,
@@ -294,22 +350,32 @@ def reference(
     rtol: float = 1e-10,
     atol: float = 1e-12,
     cache_dir: Path | None = CACHE_DIR,
+    cosim_tol: float = 1e-6,
 ) -> Trajectory:
-    """The cached reference solution of a loaded scene (see `integrate`).
+    """The cached reference solution of a loaded scene (see `integrate`; without Model Exchange
+    `converged_cosimulation` to cosim_tol).
 
     overrides: the overrides the scene was loaded with (part of the cache key).
     grid_step: spacing (s) of the reference grid; default the scene's record interval.
     cache_dir: None disables the cache.
     """
     grid = record_grid(scenario, grid_step)
+    me = has_model_exchange(scenario)
     settings = {"rtol": rtol, "atol": atol, "grid": [grid[0], grid[-1], len(grid)], "method": "Radau"}
+    if not me:
+        settings = {"tol": cosim_tol, "grid": settings["grid"], "method": "converged co-simulation"}
     path = None
     if cache_dir is not None:
         path = Path(cache_dir) / f"{cache_key(scenario, overrides, settings)}.npz"
         if path.exists():
             data = np.load(path)
             return Trajectory(data["__time__"], {k: data[k] for k in data.files if k != "__time__"})
-    traj = integrate(scenario, grid, rtol=rtol, atol=atol)
+    if me:
+        traj = integrate(scenario, grid, rtol=rtol, atol=atol)
+    else:
+        traj, conv = converged_cosimulation(scenario, grid_step, tol=cosim_tol)
+        print(f"{scenario.path}: no Model Exchange; reference = converged co-simulation:\n{conv.table()}",
+              file=sys.stderr)  # fmt: skip
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
