@@ -18,7 +18,7 @@ from fmpy.fmi2 import FMU2Model, FMU2Slave
 from scipy.integrate import solve_ivp
 
 from master.fmubuild import fmu_path
-from master.scenario.ssv import SSV_NS
+from master.scenario.ssv import read_ssv
 
 EULER, SI_EULER, SI_MIDPOINT = 1, 5, 6
 PS, BETA = 1.38e7, 1.03e9  # Table 2 supply pressure and bulk modulus (Pa)
@@ -312,18 +312,11 @@ def test_holding_pressures_hold_the_table2_arm_at_rest(fmu):
     import json
     from pathlib import Path
 
-    from lxml import etree
-
     scene = Path(__file__).resolve().parents[1] / "models" / "hydraulic-manipulator"
     spec = importlib.util.spec_from_file_location("holding_pressures", scene / "holding_pressures.py")
     hp = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(hp)
-    ns = {"ssv": SSV_NS}
-    root = etree.parse(str(scene / "hydraulics.ssv")).getroot()
-    stored = {
-        p.get("name"): float(p.find("ssv:Real", ns).get("value"))
-        for p in root.iterfind(".//ssv:Parameter", ns)
-    }
+    stored = read_ssv(scene / "hydraulics.ssv")
     arm_params = json.loads(hp.ARM_PARAMETERS.read_text(encoding="utf-8"))
     forces = hp.holding_forces(fmu_path("manipulator"), arm_params)
     assert stored == pytest.approx(hp.pressures(forces), rel=1e-9)

@@ -5,6 +5,7 @@ Real FMUs built from C, run through master.api.run.  Units: s, m, m/s, m/s^2, Pa
 
 from __future__ import annotations
 
+import importlib.util
 import math
 from pathlib import Path
 
@@ -21,6 +22,20 @@ SPOOL = np.array([1.2e-3, -0.9e-3, 1.2e-3])  # m, the paper's valve steps
 AREA = np.array([1.94e-2, 1.55e-2, 1.55e-2])  # m^2, Table 2
 KV = np.array([1.49e-3, 7.45e-4, 7.45e-4]) * math.sqrt(1e-3)  # m^3/(s m Pa^0.5), fmus/hydraulics
 Q_REF = np.radians([0.0, 45.0, 300.0])  # rad, the controller's set points
+
+
+@pytest.mark.parametrize("scene", [HYDRAULIC, DC_MOTOR], ids=["hydraulic", "dc-motor"])
+def test_parameter_files_are_what_the_scripts_write(scene, tmp_path):
+    """The checked-in .ssv files are the output of the scene's make_parameters.py (none stale)."""
+    script = scene.parent / "make_parameters.py"
+    spec = importlib.util.spec_from_file_location(f"make_parameters_{scene.parent.name}", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(tmp_path) == 0
+    written = sorted(tmp_path.glob("*.ssv"))
+    assert len(written) == 2
+    for f in written:
+        assert f.read_text() == (scene.parent / f.name).read_text(), f"{f.name} is stale: run {script}"
 
 
 @pytest.mark.parametrize("scene", [HYDRAULIC, DC_MOTOR], ids=["hydraulic", "dc-motor"])

@@ -39,6 +39,17 @@ def write_ssv(
     Path(path).write_text("\n".join(lines), encoding="utf-8")
 
 
+def real_units(model_description: Path) -> dict[str, str]:
+    """Unit of each Real variable of an FMU that has one, from its modelDescription.xml."""
+    from lxml import etree
+
+    return {
+        sv.get("name"): sv[0].get("unit")
+        for sv in etree.parse(str(model_description)).iter("ScalarVariable")
+        if sv[0].tag == "Real" and sv[0].get("unit")
+    }
+
+
 def read_ssv(path: Path) -> dict[str, float]:
     """The Real and Integer parameters of a ParameterValues file, as floats."""
     from lxml import etree

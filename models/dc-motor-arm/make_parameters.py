@@ -19,6 +19,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from master.scenario.ssv import read_ssv, real_units, write_ssv
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
@@ -30,19 +32,21 @@ def _module(path: Path) -> ModuleType:
     return module
 
 
-def main() -> int:
-    hm = _module(ROOT / "models" / "hydraulic-manipulator" / "make_parameters.py")  # ssv writer, units
-    pp = _module(HERE / "place_poles.py")
-    controller = pp.read_ssv(HERE / "controller.ssv")
+def main(out: Path = HERE) -> int:
+    """Write mechanics.ssv and motors.ssv into `out` (default: beside this script)."""
+    controller = read_ssv(HERE / "controller.ssv")
     mech = _module(ROOT / "models" / "mechanism" / "parameters.py").table3()
     for k in (1, 2, 3):
         mech[f"q{k}_0"] = controller[f"q{k}_ref"]  # rad
         mech[f"qd{k}_0"] = 0.0  # rad/s
-    mech_units = hm.units(ROOT / "fmus" / "manipulator" / "modelDescription.xml")
-    hm.write_ssv(HERE / "mechanics.ssv", "Table 3 mechanics at the set point", mech, mech_units)
     currents = {f"i{k}": controller[f"i_ref{k}"] for k in (1, 2, 3)}  # A
-    motor_units = hm.units(ROOT / "fmus" / "dcmotor" / "modelDescription.xml")
-    hm.write_ssv(HERE / "motors.ssv", "holding currents", currents, motor_units)
+    for file, name, params, fmu in (
+        ("mechanics.ssv", "Table 3 mechanics at the set point", mech, "manipulator"),
+        ("motors.ssv", "holding currents", currents, "dcmotor"),
+    ):
+        units = real_units(ROOT / "fmus" / fmu / "modelDescription.xml")
+        write_ssv(out / file, name, dict(sorted(params.items())), units, f"{HERE.name}/make_parameters.py")
+        print(f"wrote {out / file}")
     return 0
 
 

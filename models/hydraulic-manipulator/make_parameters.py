@@ -21,7 +21,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 
 from master.scenario import ssv
 
@@ -93,26 +92,17 @@ def hydraulics() -> dict[str, float]:
     return p
 
 
-def units(model_description: Path) -> dict[str, str]:
-    """Unit of each real parameter of an FMU, from its modelDescription.xml."""
-    return {
-        sv.get("name"): sv[0].get("unit")
-        for sv in etree.parse(str(model_description)).iter("ScalarVariable")
-        if sv[0].tag == "Real" and sv[0].get("unit")
-    }
-
-
-def write_ssv(path: Path, name: str, params: dict[str, float | int], unit_of: dict[str, str]) -> None:
-    """Write a generated parameter set (sorted by name, with units) beside this script."""
-    ssv.write_ssv(path, name, dict(sorted(params.items())), unit_of, f"{path.parent.name}/make_parameters.py")
+def write_ssv(path: Path, name: str, params: dict[str, float | int], fmu: str) -> None:
+    """Write a generated parameter set (sorted by name, with the units of project FMU `fmu`)."""
+    units = ssv.real_units(ROOT / "fmus" / fmu / "modelDescription.xml")
+    ssv.write_ssv(path, name, dict(sorted(params.items())), units, f"{HERE.name}/make_parameters.py")
     print(f"wrote {path}")
 
 
-def main() -> int:
-    mech_md = ROOT / "fmus" / "manipulator" / "modelDescription.xml"
-    hyd_md = ROOT / "fmus" / "hydraulics" / "modelDescription.xml"
-    write_ssv(HERE / "mechanics.ssv", "Table 2 mechanics", mechanics(), units(mech_md))
-    write_ssv(HERE / "actuators.ssv", "Table 2 hydraulics", hydraulics(), units(hyd_md))
+def main(out: Path = HERE) -> int:
+    """Write mechanics.ssv and actuators.ssv into `out` (default: beside this script)."""
+    write_ssv(out / "mechanics.ssv", "Table 2 mechanics", mechanics(), "manipulator")
+    write_ssv(out / "actuators.ssv", "Table 2 hydraulics", hydraulics(), "hydraulics")
     return 0
 
 
