@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         except SimulationError as e:
             res, status = e.result, str(e).split(" (hint")[0]
         runs[f"{name}, H = {float(paper_h):g} s"] = (as_trajectory(res.data), status)
-    ref = reference(configure(sc, Fraction(6, 100), AB3, 1), overrides={"stop_time": STOP, "grid": "6e-2"})
+    ref = reference(configure(sc, Fraction(6, 100), AB3, 1))
     errs = {}
     for label, (traj, _) in runs.items():
         try:

@@ -5,6 +5,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+import master.evidence.reference as reference_module
 from master.evidence.reference import integrate, reference
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Scenario
@@ -29,15 +30,21 @@ def test_stiff_dahlquist_reference_is_cheap_and_exact(tmp_path):
     assert np.max(np.abs(tr.values["d.y"][1:])) < 1e-12
 
 
-def test_cache_hit_and_key(tmp_path):
+def test_cache_hit_and_key(tmp_path, monkeypatch):
     sc = _dahlquist(tmp_path, -1.0)
     cache = tmp_path / "cache"
-    a = reference(sc, {"x": 1}, cache_dir=cache)
-    files = list(cache.glob("*.npz"))
-    assert len(files) == 1
-    b = reference(sc, {"x": 1}, cache_dir=cache)  # from the file
+    a = reference(sc, cache_dir=cache)
+    assert len(list(cache.glob("*.npz"))) == 1
+
+    def no_integration(*args, **kwargs):
+        raise AssertionError("integrated again instead of reading the cache")
+
+    monkeypatch.setattr(reference_module, "integrate", no_integration)
+    b = reference(sc, cache_dir=cache)  # from the file
     assert np.array_equal(a.values["d.y"], b.values["d.y"])
-    reference(sc, {"x": 2}, cache_dir=cache)  # other overrides: other entry
+    monkeypatch.undo()  # another parameter must integrate again: a new entry
+    other = _dahlquist(tmp_path, -2.0)
+    reference(other, cache_dir=cache)
     assert len(list(cache.glob("*.npz"))) == 2
 
 

@@ -359,9 +359,7 @@ def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int
     sc = load_scenario(scenario)
     p = profile_for(sc)
     base = base_scene(sc, p)
-    ref = reference(
-        base, overrides={"record_interval": str(p.record_interval), "stop_time": str(base.stop_time)}
-    )
+    ref = reference(base)
     lin = linearize(apply(sc, p, p.base), t=p.linearize_at)
     rows = []
     for c in configurations(p, quick):

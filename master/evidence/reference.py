@@ -11,7 +11,7 @@ instead: the scene's own scheme run with the macro step halved until two success
 agree to a tolerance (`converged_cosimulation`); the convergence table goes to the log.
 
 Results are cached in build/reference-cache/, keyed by a hash of the scenario file, the
-overrides, the integration settings and the FMU files.
+loaded scene (parameters, times, records), the integration settings and the FMU files.
 """
 
 from __future__ import annotations
@@ -27,11 +27,13 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Model
 from scipy.integrate import solve_ivp
 
+from master.coupling import stimulus_value
 from master.evidence.errors import Trajectory, as_trajectory, compare
+from master.fmu import feedthrough_outputs, safe_extract
 from master.scenario.model import Scenario, Stimulus
 
 CACHE_DIR = Path(__file__).resolve().parents[2] / "build" / "reference-cache"
@@ -64,13 +66,7 @@ def _open(comp_name: str, fmu_path: Path, parameters: dict, start_time: float) -
         raise NoModelExchange(f"{fmu_path}: component {comp_name!r} has no Model Exchange interface")
     vr = {v.name: v.valueReference for v in md.modelVariables}
     kind = {v.name: v.type for v in md.modelVariables}
-    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
-    feed = set()
-    for out in md.outputs:
-        deps = out.dependencies
-        if deps is None or any(d.name in inputs for d in deps):
-            feed.add(out.variable.name)
-    unzip = extract(str(fmu_path))
+    unzip = str(safe_extract(fmu_path, Path(tempfile.mkdtemp(prefix="reference-"))))
     fmu = FMU2Model(
         guid=md.guid,
         unzipDirectory=unzip,
@@ -90,7 +86,7 @@ def _open(comp_name: str, fmu_path: Path, parameters: dict, start_time: float) -
         pass
     fmu.enterContinuousTimeMode()
     n = md.numberOfContinuousStates
-    return _Member(comp_name, fmu, unzip, n, 0, vr, kind, feed, np.zeros(n), np.zeros(n))
+    return _Member(comp_name, fmu, unzip, n, 0, vr, kind, feedthrough_outputs(md), np.zeros(n), np.zeros(n))
 
 
 def _set(fmu: FMU2Model, kind: str, vr: int, value) -> None:
@@ -125,15 +121,12 @@ def _topological(scenario: Scenario, members: dict[str, _Member]) -> list[str]:
     return order
 
 
-def _stimulus_value(s: Stimulus, t: float, segment_start: float) -> float:
-    """Value of a stimulus: steps are held from the segment start, tables interpolate in t."""
+def _stimulus_value(s: Stimulus, t: float, segment_start: float) -> float | None:
+    """Value of a stimulus: steps are held from the segment start (None before the first step:
+    the input keeps its start value), tables interpolate in t."""
     if s.kind == "step":
-        value = None
-        for ti, vi in zip(s.times, s.values, strict=True):
-            if ti <= segment_start + 1e-12 * max(1.0, abs(ti)):
-                value = vi
-        return value  # None: before the first step, leave the input's start value
-    return float(np.interp(t, s.times, s.values))
+        return None if segment_start < s.times[0] else stimulus_value(s, segment_start, 0.0)
+    return stimulus_value(s, t, 0.0)
 
 
 class _Scene:
@@ -277,14 +270,13 @@ def _file_hash(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def cache_key(scenario: Scenario, overrides: dict | None, settings: dict) -> str:
-    """Hash of the scenario file (if any), the scene's content, the overrides, the settings and
-    every FMU file."""
+def cache_key(scenario: Scenario, settings: dict) -> str:
+    """Hash of the scenario file (if any), the scene's content (parameters, times, records), the
+    integration settings and every FMU file."""
     h = hashlib.sha256()
     if Path(scenario.path).is_file():
         h.update(Path(scenario.path).read_bytes())
     h.update(repr(scenario).encode())
-    h.update(json.dumps(overrides or {}, sort_keys=True, default=str).encode())
     h.update(json.dumps(settings, sort_keys=True, default=str).encode())
     for comp in scenario.components:
         h.update(comp.name.encode())
@@ -345,7 +337,6 @@ def converged_cosimulation(
 
 def reference(
     scenario: Scenario,
-    overrides: dict | None = None,
     grid_step: Fraction | None = None,
     rtol: float = 1e-10,
     atol: float = 1e-12,
@@ -355,7 +346,6 @@ def reference(
     """The cached reference solution of a loaded scene (see `integrate`; without Model Exchange
     `converged_cosimulation` to cosim_tol).
 
-    overrides: the overrides the scene was loaded with (part of the cache key).
     grid_step: spacing (s) of the reference grid; default the scene's record interval.
     cache_dir: None disables the cache.
     """
@@ -366,7 +356,7 @@ def reference(
         settings = {"tol": cosim_tol, "grid": settings["grid"], "method": "converged co-simulation"}
     path = None
     if cache_dir is not None:
-        path = Path(cache_dir) / f"{cache_key(scenario, overrides, settings)}.npz"
+        path = Path(cache_dir) / f"{cache_key(scenario, settings)}.npz"
         if path.exists():
             data = np.load(path)
             return Trajectory(data["__time__"], {k: data[k] for k in data.files if k != "__time__"})
