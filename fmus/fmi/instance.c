@@ -23,9 +23,7 @@ static size_t layout(Instance *inst, unsigned char *base) {
     } while (0)
     PART(core, Core, 1);
     PART(reals, double, m->n_reals);
-    PART(x, double, m->n_states);
     PART(memory, double, solver_memory_size(m->n_states));
-    PART(input_values, double, inst->n_real_inputs);
     PART(input_derivs, double, inst->n_real_inputs * MAX_INPUT_ORDER);
     PART(integers, int, m->n_integers);
     PART(booleans, int, m->n_booleans);
@@ -66,14 +64,16 @@ Instance *instance_new(const char *name, fmi2Type type, fmi2CallbackLogger logge
     inst->block_size = layout(inst, NULL);
     inst->block = calloc(1, inst->block_size);
     inst->work = solver_work_new(n);
+    inst->x = calloc((size_t)n + 1, sizeof(double));
     inst->dx = calloc((size_t)n + 1, sizeof(double));
+    inst->input_values = calloc((size_t)inst->n_real_inputs + 1, sizeof(double));
     inst->jac = calloc((size_t)n * (size_t)n + 1, sizeof(double));
     inst->saved_reals = calloc((size_t)m->n_reals + 1, sizeof(double));
     inst->fd_seed_base = calloc((size_t)nv + 1, sizeof(double));
     inst->fd_plus = calloc((size_t)nv + 1, sizeof(double));
     inst->fd_minus = calloc((size_t)nv + 1, sizeof(double));
-    if (!inst->block || (n > 0 && !inst->work) || !inst->dx || !inst->jac || !inst->saved_reals ||
-        !inst->fd_seed_base || !inst->fd_plus || !inst->fd_minus)
+    if (!inst->block || (n > 0 && !inst->work) || !inst->x || !inst->dx || !inst->input_values || !inst->jac ||
+        !inst->saved_reals || !inst->fd_seed_base || !inst->fd_plus || !inst->fd_minus)
         goto fail;
     layout(inst, inst->block);
     instance_reset(inst);
@@ -91,7 +91,9 @@ void instance_free(Instance *inst) {
     free(inst->real_input_vr);
     free(inst->input_index);
     free(inst->checked_vr);
+    free(inst->x);
     free(inst->dx);
+    free(inst->input_values);
     free(inst->jac);
     free(inst->saved_reals);
     free(inst->fd_seed_base);
@@ -216,7 +218,6 @@ int refresh(Instance *inst, int derivatives, const char *function) {
     }
     if (derivatives && c->derivatives_dirty && m->n_states > 0) {
         gather_states(inst, inst->x);
-        c->n_rhs++;
         if (m->derivatives(inst, c->time, inst->x, inst->dx) != MODEL_OK) {
             layer_log(inst, LOG_ERROR, "%s: model derivatives failed at t = %.17g%s", function, c->time,
                       model_error_suffix(inst));

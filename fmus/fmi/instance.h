@@ -2,11 +2,12 @@
  *
  * Everything that must survive fmi2GetFMUstate/fmi2SetFMUstate lives in ONE
  * contiguous block (`block`): the Core header, the real/integer/boolean/string
- * slots, the continuous state vector, the solver memory and the input
- * polynomials.  Offsets are computed from the ModelDef counts at instantiation,
- * so a state copy is a memcpy and serialization writes the block behind a
- * small header.  Scratch buffers (solver work, finite differences) live
- * outside the block and are never part of the state.
+ * slots (the continuous states among the reals), the solver memory and the
+ * input polynomials.  Offsets are computed from the ModelDef counts at
+ * instantiation, so a state copy is a memcpy and serialization writes the
+ * block behind a small header.  Scratch buffers (the state vector, solver
+ * work, finite differences, what one doStep remembers) live outside the block
+ * and are never part of the state.
  */
 #ifndef INSTANCE_H
 #define INSTANCE_H
@@ -36,10 +37,6 @@ typedef enum {
 /* Head of the persistent block. */
 typedef struct {
     double time;            /* current time [s] */
-    double comm_point;      /* t_c: start of the running doStep [s] (origin of the input polynomials) */
-    long long n_steps;      /* completed fmi2DoStep calls */
-    long long n_substeps;   /* solver steps taken */
-    long long n_rhs;        /* model derivative evaluations */
     int state;              /* FmiState */
     int outputs_dirty;      /* inputs, parameters or states changed since MODEL.outputs ran */
     int derivatives_dirty;  /* ... since the derivative slots were written */
@@ -62,9 +59,7 @@ struct Instance {
     size_t block_size;
     Core *core;
     double *reals;
-    double *x;               /* continuous states, n_states */
     double *memory;          /* solver memory, solver_memory_size(n_states) */
-    double *input_values;    /* Real inputs as the master set them, n_real_inputs */
     double *input_derivs;    /* n_real_inputs x MAX_INPUT_ORDER polynomial coefficients */
     int *integers;
     int *booleans;
@@ -79,7 +74,10 @@ struct Instance {
 
     /* scratch, not state */
     SolverWork *work;
+    double *x;               /* continuous states, n_states: filled by gather_states before each use */
     double *dx;              /* n_states */
+    double *input_values;    /* Real inputs as the master set them for the running doStep, n_real_inputs */
+    double comm_point;       /* t_c: start of the running doStep [s] (origin of the input polynomials) */
     double *jac;             /* n_states x n_states */
     double *saved_reals;     /* n_reals: finite differences restore from here */
     double *fd_seed_base;    /* n_variables: known values around which to differentiate */

@@ -16,7 +16,7 @@
 
 /* Evaluate the input polynomials at time t into the input slots. */
 static void apply_input_polynomials(Instance *inst, double t) {
-    double dt = t - inst->core->comm_point;
+    double dt = t - inst->comm_point;
     for (int i = 0; i < inst->n_real_inputs; i++) {
         const double *d = inst->input_derivs + (size_t)i * MAX_INPUT_ORDER;
         /* Horner form of u0 + d1 dt + d2 dt^2/2 + d3 dt^3/6 */
@@ -28,7 +28,6 @@ static void apply_input_polynomials(Instance *inst, double t) {
 int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
     Instance *inst = ctx;
     if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
-    inst->core->n_rhs++;
     return inst->model->derivatives(inst, t, x, dx) != MODEL_OK;
 }
 
@@ -78,14 +77,13 @@ fmi2Status do_step(Instance *inst, double t, double H) {
 
     for (int i = 0; i < inst->n_real_inputs; i++)
         inst->input_values[i] = inst->reals[m->variables[inst->real_input_vr[i]].slot];
-    c->comm_point = t;
+    inst->comm_point = t;
     gather_states(inst, inst->x);
     for (long long j = 0; j < steps && rc == 0 && n > 0; j++) {
         /* Substep times from the integer j: no accumulated drift. */
         double s = t + (double)j * h;
         rc = solver_step(kind, inst->memory, inst->work, n, rhs_with_inputs, m->jacobian ? jac_with_inputs : NULL,
                          inst, s, h, inst->x);
-        c->n_substeps++;
     }
 
     /* Restore the inputs the master set and forget this step's derivatives. */
@@ -102,7 +100,6 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     }
     scatter_states(inst, inst->x);
     c->time = t + H;
-    c->n_steps++;
     mark_dirty(inst);
     if (refresh(inst, 0, "fmi2DoStep") || check_finite(inst, "fmi2DoStep")) {
         c->state = ST_ERROR;
