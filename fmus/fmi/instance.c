@@ -44,10 +44,10 @@ Instance *instance_new(const char *name, fmi2Type type, fmi2CallbackLogger logge
     inst->env = env;
     inst->log_mask = logging_on ? (1u << LOG_N_CATEGORIES) - 1u : 0u;
     inst->name = malloc(strlen(name) + 1);
-    inst->real_input_vr = calloc((size_t)nv + 1, sizeof(int));
+    inst->real_input_slot = calloc((size_t)nv + 1, sizeof(int));
     inst->input_index = calloc((size_t)nv + 1, sizeof(int));
     inst->checked_vr = calloc((size_t)nv + 1, sizeof(int));
-    if (!inst->name || !inst->real_input_vr || !inst->input_index || !inst->checked_vr) goto fail;
+    if (!inst->name || !inst->real_input_slot || !inst->input_index || !inst->checked_vr) goto fail;
     strcpy(inst->name, name);
     for (int vr = 0; vr < nv; vr++) {
         const Variable *v = &m->variables[vr];
@@ -56,7 +56,7 @@ Instance *instance_new(const char *name, fmi2Type type, fmi2CallbackLogger logge
         if (v->type != T_REAL) continue;
         if (v->causality == C_INPUT) {
             inst->input_index[vr] = inst->n_real_inputs;
-            inst->real_input_vr[inst->n_real_inputs++] = vr;
+            inst->real_input_slot[inst->n_real_inputs++] = v->slot;
         }
         for (int i = 0; i < n; i++) is_state |= m->state_slots[i] == v->slot;
         if (is_state || v->causality == C_OUTPUT) inst->checked_vr[inst->n_checked++] = vr;
@@ -88,7 +88,7 @@ void instance_free(Instance *inst) {
     if (inst->work) solver_work_free(inst->work);
     free(inst->block);
     free(inst->name);
-    free(inst->real_input_vr);
+    free(inst->real_input_slot);
     free(inst->input_index);
     free(inst->checked_vr);
     free(inst->x);

@@ -67,7 +67,7 @@ struct Instance {
 
     /* constant tables derived from MODEL */
     int n_real_inputs;
-    int *real_input_vr;      /* value reference of each Real input */
+    int *real_input_slot;    /* Real slot of each Real input */
     int *input_index;        /* per value reference: index into the Real inputs or -1 */
     int n_checked;
     int *checked_vr;         /* Real states and outputs, checked for finiteness after each step */

@@ -21,7 +21,7 @@ static void apply_input_polynomials(Instance *inst, double t) {
         const double *d = inst->input_derivs + (size_t)i * MAX_INPUT_ORDER;
         /* Horner form of u0 + d1 dt + d2 dt^2/2 + d3 dt^3/6 */
         double u = inst->input_values[i] + dt * (d[0] + dt * (d[1] / 2.0 + dt * d[2] / 6.0));
-        inst->reals[inst->model->variables[inst->real_input_vr[i]].slot] = u;
+        inst->reals[inst->real_input_slot[i]] = u;
     }
 }
 
@@ -76,7 +76,7 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     h = H / (double)steps;
 
     for (int i = 0; i < inst->n_real_inputs; i++)
-        inst->input_values[i] = inst->reals[m->variables[inst->real_input_vr[i]].slot];
+        inst->input_values[i] = inst->reals[inst->real_input_slot[i]];
     inst->comm_point = t;
     gather_states(inst, inst->x);
     for (long long j = 0; j < steps && rc == 0 && n > 0; j++) {
@@ -88,7 +88,7 @@ fmi2Status do_step(Instance *inst, double t, double H) {
 
     /* Restore the inputs the master set and forget this step's derivatives. */
     for (int i = 0; i < inst->n_real_inputs; i++)
-        inst->reals[m->variables[inst->real_input_vr[i]].slot] = inst->input_values[i];
+        inst->reals[inst->real_input_slot[i]] = inst->input_values[i];
     memset(inst->input_derivs, 0, sizeof(double) * (size_t)inst->n_real_inputs * MAX_INPUT_ORDER);
     c->have_input_derivatives = 0;
 
