@@ -205,7 +205,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         if (!v) return fmi2Error;
         need_derivatives |= is_derivative(v);
     }
-    if (inst->core->state != ST_ERROR && refresh(inst, need_derivatives, "fmi2GetReal")) return fmi2Error;
+    if (refresh(inst, need_derivatives, "fmi2GetReal")) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->reals[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }
@@ -214,7 +214,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     GUARD("fmi2GetInteger", S_GET);
     for (size_t i = 0; i < nvr; i++)
         if (!lookup(inst, "fmi2GetInteger", vr[i], T_MASK_INTEGER)) return fmi2Error;
-    if (inst->core->state != ST_ERROR && refresh(inst, 0, "fmi2GetInteger")) return fmi2Error;
+    if (refresh(inst, 0, "fmi2GetInteger")) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->integers[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }
@@ -223,7 +223,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
     GUARD("fmi2GetBoolean", S_GET);
     for (size_t i = 0; i < nvr; i++)
         if (!lookup(inst, "fmi2GetBoolean", vr[i], T_MASK_BOOLEAN)) return fmi2Error;
-    if (inst->core->state != ST_ERROR && refresh(inst, 0, "fmi2GetBoolean")) return fmi2Error;
+    if (refresh(inst, 0, "fmi2GetBoolean")) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->booleans[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }

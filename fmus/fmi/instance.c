@@ -204,6 +204,7 @@ int run_initialize(Instance *inst, const char *function) {
 int refresh(Instance *inst, int derivatives, const char *function) {
     const ModelDef *m = inst->model;
     Core *c = inst->core;
+    if (c->state == ST_ERROR) return 0; /* values stay as the failure left them, for inspection */
     if (c->state == ST_INITIALIZATION && (c->outputs_dirty || (derivatives && c->derivatives_dirty)) &&
         run_initialize(inst, function))
         return 1;

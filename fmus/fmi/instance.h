@@ -118,7 +118,8 @@ int run_initialize(Instance *inst, const char *function);
 /* Bring outputs (and derivative slots when `derivatives`) up to date; 0 on success.
  * In Initialization Mode MODEL.initialize runs first unless it already ran for the
  * parameters and start values as they are (so initial outputs are the model's, and a
- * model with side effects in initialize sees one call per set of values). */
+ * model with side effects in initialize sees one call per set of values).  In the Error
+ * state nothing is evaluated: the values stay as the failure left them. */
 int refresh(Instance *inst, int derivatives, const char *function);
 /* 0 if every state and Real output is finite, else logs the first bad one and returns 1. */
 int check_finite(Instance *inst, const char *function);

@@ -25,7 +25,6 @@ enum { M_H = 0, M_COUNT = 1, M_KIND = 2, M_HEADER = 3 };
 #define H_RESTART_TOL 1e-12
 
 struct SolverWork {
-    int n;
     double *fn;    /* f(t_n, x_n) */
     double *k2;    /* RK4 stages */
     double *k3;
@@ -59,7 +58,6 @@ SolverWork *solver_work_new(int n)
         return NULL;
     }
     size_t m = (size_t)(n > 0 ? n : 1);
-    w->n = n;
     w->fn = calloc(m, sizeof(double));
     w->k2 = calloc(m, sizeof(double));
     w->k3 = calloc(m, sizeof(double));
