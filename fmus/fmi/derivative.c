@@ -28,14 +28,13 @@ static int derivative_index(const Instance *inst, const Variable *v) {
 static int evaluate(Instance *inst, const fmi2ValueReference unknown[], size_t n_unknown,
                     const fmi2ValueReference known[], size_t n_known, const double seed[], double eps, double out[]) {
     const ModelDef *m = inst->model;
-    double t = inst->core->time;
-    int rc = 0;
+    int rc;
     for (size_t j = 0; j < n_known; j++)
         inst->reals[m->variables[known[j]].slot] = inst->fd_seed_base[j] + eps * seed[j];
-    gather_states(inst, inst->x);
-    if (m->n_states > 0) rc |= m->derivatives(inst, t, inst->x, inst->dx) != MODEL_OK;
-    for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
-    if (m->outputs) rc |= m->outputs(inst, t, inst->x) != MODEL_OK;
+    /* Derivatives, then outputs: a model may write slots the other reads (manipulator
+     * warm-starts its loop closure from them), so the order is part of the result. */
+    rc = eval_derivatives(inst);
+    rc |= eval_outputs(inst);
     for (size_t i = 0; i < n_unknown; i++) out[i] = inst->reals[m->variables[unknown[i]].slot];
     return rc;
 }

@@ -201,30 +201,42 @@ int run_initialize(Instance *inst, const char *function) {
     return 0;
 }
 
-int refresh(Instance *inst, int derivatives, const char *function) {
+int eval_outputs(Instance *inst) {
     const ModelDef *m = inst->model;
+    if (!m->outputs) return 0;
+    gather_states(inst, inst->x);
+    return m->outputs(inst, inst->core->time, inst->x) != MODEL_OK;
+}
+
+int eval_derivatives(Instance *inst) {
+    const ModelDef *m = inst->model;
+    if (m->n_states == 0) return 0;
+    gather_states(inst, inst->x);
+    if (m->derivatives(inst, inst->core->time, inst->x, inst->dx) != MODEL_OK) return 1;
+    for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
+    return 0;
+}
+
+int refresh(Instance *inst, int derivatives, const char *function) {
     Core *c = inst->core;
     if (c->state == ST_ERROR) return 0; /* values stay as the failure left them, for inspection */
     if (c->state == ST_INITIALIZATION && (c->outputs_dirty || (derivatives && c->derivatives_dirty)) &&
         run_initialize(inst, function))
         return 1;
     if (c->outputs_dirty) {
-        gather_states(inst, inst->x);
-        if (m->outputs && m->outputs(inst, c->time, inst->x) != MODEL_OK) {
+        if (eval_outputs(inst)) {
             layer_log(inst, LOG_ERROR, "%s: model outputs failed at t = %.17g%s", function, c->time,
                       model_error_suffix(inst));
             return 1;
         }
         c->outputs_dirty = 0;
     }
-    if (derivatives && c->derivatives_dirty && m->n_states > 0) {
-        gather_states(inst, inst->x);
-        if (m->derivatives(inst, c->time, inst->x, inst->dx) != MODEL_OK) {
+    if (derivatives && c->derivatives_dirty) {
+        if (eval_derivatives(inst)) {
             layer_log(inst, LOG_ERROR, "%s: model derivatives failed at t = %.17g%s", function, c->time,
                       model_error_suffix(inst));
             return 1;
         }
-        for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
         c->derivatives_dirty = 0;
     }
     return 0;

@@ -115,6 +115,11 @@ void mark_dirty(Instance *inst);
 void note_set(Instance *inst, const fmi2ValueReference vr[], size_t nvr);
 /* MODEL.initialize unless Core.initialized says it already ran; 0 on success (logs on failure). */
 int run_initialize(Instance *inst, const char *function);
+/* MODEL.outputs at the current time and states; 0 on success (no logging). */
+int eval_outputs(Instance *inst);
+/* MODEL.derivatives at the current time and states, into the derivative slots; 0 on success
+ * (no logging). */
+int eval_derivatives(Instance *inst);
 /* Bring outputs (and derivative slots when `derivatives`) up to date; 0 on success.
  * In Initialization Mode MODEL.initialize runs first unless it already ran for the
  * parameters and start values as they are (so initial outputs are the model's, and a
