@@ -41,6 +41,8 @@ CFLAGS = ["-O2", "-Wall", "-Wextra", "-Werror", "-std=c99", "-D_POSIX_C_SOURCE=2
 GENERATION_TOOL = "master.fmubuild"
 PLATFORM = "linux64"
 
+# Descriptions of the values 1 .. SOLVER_COUNT of the C enumeration SolverKind (fmus/fmi/model.h);
+# describe() checks the count against the C side.
 SOLVER_ITEMS = [
     ("euler", "explicit Euler"),
     ("ab2", "Adams-Bashforth 2"),
@@ -49,13 +51,6 @@ SOLVER_ITEMS = [
     ("semi_implicit_euler", "semi-implicit (linearly implicit) Euler"),
     ("semi_implicit_midpoint", "semi-implicit midpoint"),
 ]
-LOG_CATEGORIES = [
-    ("logError", "errors: failed calls, bad arguments, non-finite results"),
-    ("logWarning", "warnings"),
-    ("logInfo", "information"),
-    ("logDebug", "debugging details"),
-]
-MAX_INPUT_DERIVATIVE_ORDER = 3
 
 
 class FmuBuildError(RuntimeError):
@@ -118,7 +113,10 @@ def _compile(args: list[str], what: str) -> None:
 
 
 def describe(name: str) -> dict[str, Any]:
-    """The model's C table as a dict (compiles and runs fmus/fmi/describe.c with the model)."""
+    """The model's C table and the layer's constants as a dict.
+
+    Compiles and runs fmus/fmi/describe.c with the model and the layer.
+    """
     with tempfile.TemporaryDirectory(prefix=f"describe-{name}-") as tmp:
         exe = Path(tmp) / "describe"
         # Only the table is read: no need to optimise (-O0 compiles three times faster).
@@ -136,6 +134,11 @@ def describe(name: str) -> dict[str, Any]:
         for key in ("start", "min", "max"):
             if isinstance(v[key], str):
                 v[key] = float(v[key])
+    if desc["solver_count"] != len(SOLVER_ITEMS):
+        raise FmuBuildError(
+            f"{FMI_DIR / 'model.h'}: SOLVER_COUNT is {desc['solver_count']} but {Path(__file__).name} "
+            f"describes {len(SOLVER_ITEMS)} solvers (SOLVER_ITEMS)"
+        )
     _check_table(name, desc)
     return desc
 
@@ -282,17 +285,6 @@ def _number(x: float) -> str:
     return repr(int(x)) if float(x).is_integer() and abs(x) < 1e15 else repr(float(x))
 
 
-def _default_initial(v: dict[str, Any]) -> str | None:
-    causality, variability = v["causality"], v["variability"]
-    if causality in ("parameter",):
-        return "exact"
-    if causality == "calculatedParameter":
-        return "calculated"
-    if causality in ("input", "independent"):
-        return None
-    return "exact" if variability == "constant" else "calculated"
-
-
 def _source_names(name: str) -> list[str]:
     return [p.name for p in _c_sources(name)]
 
@@ -355,11 +347,11 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
             etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
 
     cats = etree.SubElement(root, "LogCategories")
-    for cat, text in LOG_CATEGORIES:
-        etree.SubElement(cats, "Category", name=cat, description=text)
+    for cat in desc["log_categories"]:
+        etree.SubElement(cats, "Category", name=cat["name"], description=cat["description"])
 
     vendor = etree.SubElement(etree.SubElement(root, "VendorAnnotations"), "Tool", name=GENERATION_TOOL)
-    etree.SubElement(vendor, "Capabilities", maxInputDerivativeOrder=str(MAX_INPUT_DERIVATIVE_ORDER))
+    etree.SubElement(vendor, "Capabilities", maxInputDerivativeOrder=str(desc["max_input_derivative_order"]))
 
     mv = etree.SubElement(root, "ModelVariables")
     for vr, v in enumerate(variables):
@@ -370,8 +362,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
         sv.set("variability", v["variability"])
         if v["initial"]:
             sv.set("initial", v["initial"])
-        initial = v["initial"] or _default_initial(v)
-        has_start = initial in ("exact", "approx") or v["causality"] == "input"
+        has_start = v["effective_initial"] in ("exact", "approx") or v["causality"] == "input"
         if v["type"] == "Real":
             e = etree.SubElement(sv, "Real")
             if v["unit"]:
@@ -426,8 +417,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
     # the attribute is left out (= may depend on every known), which is always valid.
     initial_unknowns = set()
     for vr, v in enumerate(variables):
-        initial = v["initial"] or _default_initial(v)
-        calculated = initial in ("approx", "calculated")
+        calculated = v["effective_initial"] in ("approx", "calculated")
         if (v["causality"] == "output" and calculated) or v["causality"] == "calculatedParameter":
             initial_unknowns.add(vr)
         if (vr in state_vrs or vr in derivative_vrs) and calculated:

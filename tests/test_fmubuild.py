@@ -102,6 +102,30 @@ def test_dependency_on_a_parameter_is_reported(sandbox: Path) -> None:
     )
 
 
+def test_solver_descriptions_must_match_the_c_solvers(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(fmubuild, "SOLVER_ITEMS", fmubuild.SOLVER_ITEMS[:-1])
+    with pytest.raises(fmubuild.FmuBuildError, match="SOLVER_COUNT is 6 but fmubuild.py describes 5 solvers"):
+        fmubuild.describe("dahlquist")
+
+
+def test_layer_constants_come_from_c(sandbox: Path) -> None:
+    # Leave `initial` out of the table: the C layer's FMI 2.0 default rule fills it in.
+    model = sandbox / "dahlquist" / "model.c"
+    text = model.read_text()
+    text = text.replace(
+        "C_PARAMETER, V_FIXED, I_EXACT, R_LAMBDA", "C_PARAMETER, V_FIXED, I_DEFAULT, R_LAMBDA"
+    )
+    model.write_text(
+        text.replace("C_OUTPUT, V_CONTINUOUS, I_CALCULATED", "C_OUTPUT, V_CONTINUOUS, I_DEFAULT")
+    )
+    desc = fmubuild.describe("dahlquist")
+    by_name = {v["name"]: v for v in desc["variables"]}
+    assert by_name["lambda"]["initial"] is None and by_name["lambda"]["effective_initial"] == "exact"
+    assert by_name["y"]["initial"] is None and by_name["y"]["effective_initial"] == "calculated"
+    assert desc["max_input_derivative_order"] == 3
+    assert [c["name"] for c in desc["log_categories"]] == ["logError", "logWarning", "logInfo", "logDebug"]
+
+
 def test_stale_xml_is_refused_until_regenerated(sandbox: Path) -> None:
     xml = sandbox / "dahlquist" / "modelDescription.xml"
     model = sandbox / "dahlquist" / "model.c"

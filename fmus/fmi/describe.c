@@ -1,13 +1,15 @@
-/* describe.c: print a model's ModelDef as JSON on stdout.
+/* describe.c: print a model's ModelDef and the layer's constants as JSON on stdout.
  *
- * Linked with the model's sources (and the layer, which the model may call),
- * never into the FMU.  master/fmubuild.py turns the JSON into
- * modelDescription.xml, so the variable table in C is the only source of truth.
+ * Linked with the model's sources and the layer, never into the FMU.
+ * master/fmubuild.py turns the JSON into modelDescription.xml, so the C side is
+ * the only source of truth: the variable table, each variable's effective
+ * `initial` (the layer's rule), the log categories, the highest input
+ * derivative order and the number of solvers.
  */
 #include <math.h>
 #include <stdio.h>
 
-#include "model.h"
+#include "instance.h"
 
 static void json_string(const char *s) {
     if (!s) {
@@ -61,7 +63,16 @@ int main(void) {
     json_ints(m->state_slots, m->n_states);
     printf(",\n\"derivative_slots\": ");
     json_ints(m->derivative_slots, m->n_states);
-    printf(",\n\"has_initialize\": %s, \"has_jacobian\": %s, \"has_outputs\": %s,\n",
+    printf(",\n\"max_input_derivative_order\": %d, \"solver_count\": %d,\n\"log_categories\": [", MAX_INPUT_ORDER,
+           SOLVER_COUNT);
+    for (int k = 0; k < LOG_N_CATEGORIES; k++) {
+        printf("%s{\"name\": ", k ? ", " : "");
+        json_string(LOG_CATEGORY_NAMES[k]);
+        printf(", \"description\": ");
+        json_string(LOG_CATEGORY_DESCRIPTIONS[k]);
+        putchar('}');
+    }
+    printf("],\n\"has_initialize\": %s, \"has_jacobian\": %s, \"has_outputs\": %s,\n",
            m->initialize ? "true" : "false", m->jacobian ? "true" : "false", m->outputs ? "true" : "false");
     printf("\"variables\": [\n");
     for (int i = 0; i < m->n_variables; i++) {
@@ -71,6 +82,8 @@ int main(void) {
         printf(", \"type\": \"%s\", \"causality\": \"%s\", \"variability\": \"%s\", \"initial\": ",
                types[v->type], causalities[v->causality], variabilities[v->variability]);
         json_string(initials[v->initial]);
+        printf(", \"effective_initial\": ");
+        json_string(initials[effective_initial(v)]);
         printf(", \"slot\": %d, \"start\": ", v->slot);
         json_number(v->start);
         printf(", \"start_string\": ");

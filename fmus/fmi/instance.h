@@ -87,6 +87,7 @@ struct Instance {
 /* log.c */
 enum { LOG_ERROR = 0, LOG_WARNING = 1, LOG_INFO = 2, LOG_DEBUG = 3, LOG_N_CATEGORIES = 4 };
 extern const char *const LOG_CATEGORY_NAMES[LOG_N_CATEGORIES];
+extern const char *const LOG_CATEGORY_DESCRIPTIONS[LOG_N_CATEGORIES];
 void layer_log(Instance *inst, int category, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))

@@ -6,6 +6,9 @@
 #include "instance.h"
 
 const char *const LOG_CATEGORY_NAMES[LOG_N_CATEGORIES] = {"logError", "logWarning", "logInfo", "logDebug"};
+/* For modelDescription.xml (printed by describe.c). */
+const char *const LOG_CATEGORY_DESCRIPTIONS[LOG_N_CATEGORIES] = {
+    "errors: failed calls, bad arguments, non-finite results", "warnings", "information", "debugging details"};
 
 static const fmi2Status CATEGORY_STATUS[LOG_N_CATEGORIES] = {fmi2Error, fmi2Warning, fmi2OK, fmi2OK};
 

@@ -33,6 +33,7 @@ typedef enum {
     SOLVER_SEMI_IMPLICIT_EULER = 5,
     SOLVER_SEMI_IMPLICIT_MIDPOINT = 6
 } SolverKind;
+enum { SOLVER_COUNT = SOLVER_SEMI_IMPLICIT_MIDPOINT }; /* solvers are numbered 1 .. SOLVER_COUNT */
 
 enum { R_INTERNAL_STEP = 0, R_MODEL_START = 1 };
 enum { I_SOLVER = 0, I_MODEL_START = 1 };
@@ -103,13 +104,14 @@ void model_log(Instance *inst, const char *category, const char *fmt, ...)
     ;
 
 /* The two variables every model lists first in its table. */
-#define COMMON_VARIABLES(default_solver, default_internal_step)                                          \
-    {"solver", T_SOLVER, C_PARAMETER, V_FIXED, I_EXACT, I_SOLVER, (default_solver), NULL, 1, 6, NULL,    \
-     "fixed-step solver: 1 euler, 2 ab2, 3 ab3, 4 rk4, 5 semi-implicit euler, 6 semi-implicit midpoint",   \
-     NO_STATE, NULL},                                                                                    \
+#define COMMON_VARIABLES(default_solver, default_internal_step)                                           \
+    {"solver", T_SOLVER, C_PARAMETER, V_FIXED, I_EXACT, I_SOLVER, (default_solver),                       \
+     NULL, 1, SOLVER_COUNT, NULL,                                                                         \
+     "fixed-step solver: 1 euler, 2 ab2, 3 ab3, 4 rk4, 5 semi-implicit euler, 6 semi-implicit midpoint",  \
+     NO_STATE, NULL},                                                                                     \
     {"internal_step", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_INTERNAL_STEP, (default_internal_step),    \
-     NULL, 0, INFINITY, "s",                                                                             \
-     "solver step inside a communication step; 0: one step per communication step",                     \
+     NULL, 0, INFINITY, "s",                                                                              \
+     "solver step inside a communication step; 0: one step per communication step",                       \
      NO_STATE, NULL}
 
 #endif
