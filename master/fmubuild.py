@@ -159,6 +159,8 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
         problems.append(f'MODEL.identifier is "{desc["identifier"]}" but the folder is "{name}"')
     if len(variables) < 2 or variables[0]["name"] != "solver" or variables[1]["name"] != "internal_step":
         problems.append("the table must start with COMMON_VARIABLES(...)")
+    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
+    state_vrs = {real_vr.get(s) for s in desc["state_slots"]}
     seen_names: set[str] = set()
     used_slots: dict[tuple[str, int], str] = {}
     for vr, v in enumerate(variables):
@@ -179,21 +181,14 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
         for dep in (v["dependencies"] or "").split():
             if not dep.isdigit() or int(dep) >= len(variables):
                 problems.append(f"{label}: dependency {dep!r} is not a value reference")
+            elif variables[int(dep)]["causality"] != "input" and int(dep) not in state_vrs:
+                problems.append(
+                    f'{label}: dependency {dep} ("{variables[int(dep)]["name"]}") '
+                    "is neither an input nor a continuous state"
+                )
         if v["type"] != "String" and v["initial"] != "calculated" and not math.isfinite(v["start"]):
             problems.append(f"{label}: start value {v['start']} is not finite")
-    n = desc["n_states"]
-    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
-    state_vrs = {real_vr.get(s) for s in desc["state_slots"]}
-    for vr, v in enumerate(variables):
-        for dep in (v["dependencies"] or "").split():
-            if dep.isdigit() and int(dep) < len(variables):
-                known = variables[int(dep)]
-                if known["causality"] != "input" and int(dep) not in state_vrs:
-                    problems.append(
-                        f'variable {vr} "{v["name"]}": dependency {dep} ("{known["name"]}") '
-                        "is neither an input nor a continuous state"
-                    )
-    for i in range(n):
+    for i in range(desc["n_states"]):
         s, d = desc["state_slots"][i], desc["derivative_slots"][i]
         if s not in real_vr:
             problems.append(f"state {i}: real slot {s} belongs to no variable")
@@ -490,9 +485,9 @@ def build_fmu(name: str) -> Path:
 
 
 def _inputs_of(name: str) -> list[Path]:
-    model_dir = _model_dir(name)
-    extra = [p for p in model_dir.iterdir() if p.is_file() and p.suffix in (".c", ".h", ".xml")]
-    return _c_sources(name) + _headers(name) + extra + [FMI_DIR / "describe.c", Path(__file__)]
+    """The files an FMU is built from: a change in any of them makes it stale."""
+    xml = sorted(_model_dir(name).glob("*.xml"))
+    return _c_sources(name) + _headers(name) + xml + [FMI_DIR / "describe.c", Path(__file__)]
 
 
 def fmu_path(name: str) -> Path:
@@ -503,11 +498,6 @@ def fmu_path(name: str) -> Path:
         if all(p.stat().st_mtime <= built for p in _inputs_of(name)):
             return target
     return build_fmu(name)
-
-
-def build_all() -> list[Path]:
-    """Build every project FMU; returns their paths."""
-    return [build_fmu(name) for name in project_fmu_names()]
 
 
 def _shown(path: Path) -> str:
