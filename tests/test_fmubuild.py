@@ -39,12 +39,9 @@ def test_fmu_contents_and_sources_compile_on_their_own(tmp_path: Path) -> None:
         assert f"sources/{src}" in names
     assert "sources/describe.c" not in names
     sources = tmp_path / "sources"
-    proc = subprocess.run(
-        ["cc", *fmubuild.CFLAGS, "-shared", f"-I{sources}", *map(str, sorted(sources.glob("*.c"))), "-lm"]
-        + ["-o", str(tmp_path / "again.so")],
-        capture_output=True,
-        text=True,
-    )
+    args = [fmubuild._compiler(), *fmubuild.CFLAGS, "-shared", f"-I{sources}"]
+    args += [str(p) for p in sorted(sources.glob("*.c"))] + ["-lm", "-o", str(tmp_path / "again.so")]
+    proc = subprocess.run(args, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
 
 

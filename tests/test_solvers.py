@@ -1,9 +1,9 @@
 """Mathematical tests of the fixed-step solvers of fmus/solvers.
 
 Two ways in:
-- a small C driver (tests/c/solver_driver.c) compiled here with -Wall -Wextra -Werror, for the
-  dense LU against numpy, the plain-data memory and history restart, and the finite-difference
-  Jacobian against the analytic one;
+- a small C driver (tests/c/solver_driver.c) compiled here with the FMUs' compiler and flags, for
+  the dense LU against numpy, the plain-data memory and history restart, and the
+  finite-difference Jacobian against the analytic one;
 - the real FMUs through fmpy: observed orders of convergence on `nonlinear` (closed-form solution)
   and the real-axis stability limits on `dahlquist` (y' = lambda y).
 """
@@ -11,16 +11,14 @@ Two ways in:
 from __future__ import annotations
 
 import math
-import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
 
-from master.fmubuild import fmu_path
+from master import fmubuild
+from master.fmu import Fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVERS = ROOT / "fmus" / "solvers"
@@ -58,17 +56,11 @@ def observed_order(steps: list[float], errors: list[float]) -> float:
 
 @pytest.fixture(scope="module")
 def driver(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The C driver, built warnings-clean against the solver sources."""
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        pytest.fail("gcc is required to build tests/c/solver_driver.c")
+    """The C driver, built warnings-clean against the solver sources like the FMUs."""
     exe = tmp_path_factory.mktemp("solver_driver") / "solver_driver"
     cmd = [
-        gcc,
-        "-O2",
-        "-Wall",
-        "-Wextra",
-        "-Werror",
+        fmubuild._compiler(),
+        *fmubuild.CFLAGS,
         f"-I{SOLVERS}",
         f"-I{ROOT / 'fmus' / 'fmi'}",
         str(ROOT / "tests" / "c" / "solver_driver.c"),
@@ -89,13 +81,11 @@ def run_driver(exe: Path, *args: str, stdin: str = "") -> list[str]:
     return out.stdout.split("\n")[:-1]
 
 
-def driver_ode(
-    exe: Path, problem: str, kind: int, h: float, steps: int, param: float, jac: bool
-) -> np.ndarray:
-    """Final state after `steps` steps of h (s) from t = 0 on the driver's `problem`."""
-    lines = run_driver(exe, "ode", problem, str(kind), repr(h), str(steps), repr(param), "1" if jac else "0")
+def driver_nonlinear(exe: Path, kind: int, h: float, steps: int, jac: bool) -> np.ndarray:
+    """Final (x, y) after `steps` steps of h (s) from t = 0 on the nonlinear problem (omega = a = 1)."""
+    lines = run_driver(exe, "ode", str(kind), repr(h), str(steps), "1.0", "1" if jac else "0")
     assert not lines[0].startswith("error"), lines[0]
-    return np.array([float(v) for v in lines if not v.startswith("evaluations")])
+    return np.array([float(v) for v in lines])
 
 
 def test_lu_solves_like_numpy(driver: Path) -> None:
@@ -136,96 +126,61 @@ def test_memory_is_plain_data_and_h_change_restarts(driver: Path) -> None:
 def test_finite_difference_jacobian_agrees_with_analytic(driver: Path, kind: int) -> None:
     # 200 steps of 0.01 s: the method's error is about 1e-3; the two Jacobians differ by about
     # sqrt(eps) relative, which moves the result by far less than that.
-    analytic = driver_ode(driver, "nonlinear", kind, 0.01, 200, 1.0, jac=True)
-    finite = driver_ode(driver, "nonlinear", kind, 0.01, 200, 1.0, jac=False)
+    analytic = driver_nonlinear(driver, kind, 0.01, 200, jac=True)
+    finite = driver_nonlinear(driver, kind, 0.01, 200, jac=False)
     error = np.linalg.norm(analytic - nonlinear_exact(2.0))
     assert error > 1e-6  # the comparison below must be meaningful
     assert np.linalg.norm(analytic - finite) < 1e-6 * error
-
-
-@pytest.mark.parametrize("kind", list(ORDERS))
-def test_driver_order_of_convergence(driver: Path, kind: int) -> None:
-    t_end, steps = 2.0, [20, 40, 80, 160]
-    hs = [t_end / s for s in steps]
-    errors = [
-        float(
-            np.linalg.norm(
-                driver_ode(driver, "nonlinear", kind, h, s, 1.0, jac=True) - nonlinear_exact(t_end)
-            )
-        )
-        for h, s in zip(hs, steps, strict=True)
-    ]
-    assert observed_order(hs, errors) == pytest.approx(ORDERS[kind], abs=0.2)
 
 
 # ---------------------------------------------------------------------------------------------
 # Through the real FMUs (fmpy)
 
 
-class Slave:
-    """One project FMU, extracted once and instantiated afresh for every run."""
+def run(
+    path: Path,
+    solver: int,
+    internal_step: float,
+    comm_step: float,
+    n_comm: int,
+    reals: dict[str, float],
+    outputs: list[str],
+    stop_above: float = math.inf,
+) -> np.ndarray:
+    """Values of `outputs` (one row per doStep) after each of n_comm doSteps of comm_step (s).
 
-    def __init__(self, name: str, tmp: Path) -> None:
-        path = fmu_path(name)
-        self.md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.unzipdir = extract(str(path), unzipdir=str(tmp / name))
-
-    def run(
-        self,
-        solver: int,
-        internal_step: float,
-        comm_step: float,
-        n_comm: int,
-        reals: dict[str, float],
-        outputs: list[str],
-        stop_above: float = math.inf,
-    ) -> np.ndarray:
-        """Values of `outputs` (one row per doStep) after each of n_comm doSteps of comm_step (s).
-
-        Starts at t = 0.  internal_step (s): solver step inside a doStep, 0 for one step per
-        doStep.  reals: parameter values.  Stops early once an output exceeds stop_above.
-        """
-        # A fresh FMU2Slave per run: fmpy's freeInstance also unloads the library.
-        fmu = FMU2Slave(
-            guid=self.md.guid,
-            unzipDirectory=self.unzipdir,
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
-            instanceName=self.md.modelName,
-        )
-        fmu.instantiate()
-        try:
-            fmu.setupExperiment(startTime=0.0)
-            fmu.enterInitializationMode()
-            fmu.setInteger([self.vr["solver"]], [solver])
-            fmu.setReal(
-                [self.vr["internal_step"], *(self.vr[k] for k in reals)], [internal_step, *reals.values()]
-            )
-            fmu.exitInitializationMode()
-            vrs = [self.vr[o] for o in outputs]
-            values = []
-            for k in range(n_comm):
-                fmu.doStep(currentCommunicationPoint=k * comm_step, communicationStepSize=comm_step)
-                values.append(fmu.getReal(vrs))
-                if np.max(np.abs(values[-1])) > stop_above:
-                    break
-            fmu.terminate()
-        finally:
-            fmu.freeInstance()
-        return np.array(values)
+    A fresh instance of the FMU at `path`, started at t = 0.  internal_step (s): solver step
+    inside a doStep, 0 for one step per doStep.  reals: parameter values.  Stops early once an
+    output exceeds stop_above.
+    """
+    fmu = Fmu(path, path.stem)
+    try:
+        fmu.enter_initialization(0.0, n_comm * comm_step)
+        fmu.set_values({"solver": solver, "internal_step": internal_step, **reals})
+        fmu.exit_initialization()
+        port = fmu.real_port(outputs)
+        values = []
+        for k in range(n_comm):
+            fmu.do_step(k * comm_step, comm_step)
+            values.append(port.get().copy())
+            if np.max(np.abs(values[-1])) > stop_above:
+                break
+    finally:
+        fmu.close()
+    return np.array(values)
 
 
 @pytest.fixture(scope="module")
-def nonlinear(tmp_path_factory: pytest.TempPathFactory) -> Slave:
-    return Slave("nonlinear", tmp_path_factory.mktemp("fmus"))
+def nonlinear() -> Path:
+    return fmubuild.fmu_path("nonlinear")
 
 
 @pytest.fixture(scope="module")
-def dahlquist(tmp_path_factory: pytest.TempPathFactory) -> Slave:
-    return Slave("dahlquist", tmp_path_factory.mktemp("fmus"))
+def dahlquist() -> Path:
+    return fmubuild.fmu_path("dahlquist")
 
 
-def nonlinear_error(slave: Slave, kind: int, t_end: float, n: int, substeps: bool) -> float:
+def nonlinear_error(fmu: Path, kind: int, t_end: float, n: int, substeps: bool) -> float:
     """Error norm of (x, y) of the nonlinear FMU at t_end (s) after n solver steps.
 
     substeps: one doStep with internal_step = t_end / n, else n doSteps with one step each
@@ -233,15 +188,15 @@ def nonlinear_error(slave: Slave, kind: int, t_end: float, n: int, substeps: boo
     """
     h = t_end / n
     if substeps:
-        final = slave.run(kind, h, t_end, 1, {}, ["x", "y"])[-1]
+        final = run(fmu, kind, h, t_end, 1, {}, ["x", "y"])[-1]
     else:
-        final = slave.run(kind, 0.0, h, n, {}, ["x", "y"])[-1]
+        final = run(fmu, kind, 0.0, h, n, {}, ["x", "y"])[-1]
     return float(np.linalg.norm(final - nonlinear_exact(t_end)))
 
 
 @pytest.mark.parametrize("substeps", [True, False], ids=["internal-steps", "communication-steps"])
 @pytest.mark.parametrize("kind", list(ORDERS), ids=[NAMES[k] for k in ORDERS])
-def test_order_of_convergence(nonlinear: Slave, kind: int, substeps: bool) -> None:
+def test_order_of_convergence(nonlinear: Path, kind: int, substeps: bool) -> None:
     # t_end = 2 s, h = 0.05 ... 0.00625 s: asymptotic for every method, and the smallest RK4
     # error (about 7e-10) stays far above rounding.
     t_end, steps = 2.0, [40, 80, 160, 320]
@@ -251,18 +206,18 @@ def test_order_of_convergence(nonlinear: Slave, kind: int, substeps: bool) -> No
     assert order == pytest.approx(ORDERS[kind], abs=0.2), (order, errors)
 
 
-def grows(slave: Slave, kind: int, z: float) -> bool:
+def grows(fmu: Path, kind: int, z: float) -> bool:
     """Whether y' = (z / 1 s) y with h = 1 s grows over 2000 steps (|y| above its start 1)."""
-    y = slave.run(kind, 1.0, 100.0, 20, {"lambda": z, "y0": 1.0}, ["y"], stop_above=1e6)
+    y = run(fmu, kind, 1.0, 100.0, 20, {"lambda": z, "y0": 1.0}, ["y"], stop_above=1e6)
     return bool(abs(y[-1, 0]) > 1.0)
 
 
-def bisect_limit(slave: Slave, kind: int, stable: float, unstable: float, iterations: int = 18) -> float:
+def bisect_limit(fmu: Path, kind: int, stable: float, unstable: float, iterations: int = 18) -> float:
     """Boundary z between a bounded (stable) and a growing (unstable) solution, by bisection."""
-    assert not grows(slave, kind, stable) and grows(slave, kind, unstable)
+    assert not grows(fmu, kind, stable) and grows(fmu, kind, unstable)
     for _ in range(iterations):
         mid = 0.5 * (stable + unstable)
-        if grows(slave, kind, mid):
+        if grows(fmu, kind, mid):
             unstable = mid
         else:
             stable = mid
@@ -270,15 +225,15 @@ def bisect_limit(slave: Slave, kind: int, stable: float, unstable: float, iterat
 
 
 @pytest.mark.parametrize("kind", list(LIMITS), ids=[NAMES[k] for k in LIMITS])
-def test_real_axis_stability_limit(dahlquist: Slave, kind: int) -> None:
+def test_real_axis_stability_limit(dahlquist: Path, kind: int) -> None:
     limit = LIMITS[kind]
     found = bisect_limit(dahlquist, kind, 0.5 * limit, 1.5 * limit)
     assert found == pytest.approx(limit, rel=0.02), found
 
 
 @pytest.mark.parametrize("kind", [SI_EULER, SI_MIDPOINT], ids=[NAMES[SI_EULER], NAMES[SI_MIDPOINT]])
-def test_semi_implicit_bounded_when_stiff(dahlquist: Slave, kind: int) -> None:
-    y = dahlquist.run(kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
+def test_semi_implicit_bounded_when_stiff(dahlquist: Path, kind: int) -> None:
+    y = run(dahlquist, kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
     assert len(y) == 20 and np.all(np.abs(y) <= 1.0)
     if kind == SI_EULER:
         # L-stable: R(z) = 1 / (1 - z), about 1e-6 per step.
@@ -290,22 +245,19 @@ def test_semi_implicit_bounded_when_stiff(dahlquist: Slave, kind: int) -> None:
         assert y[-1] == pytest.approx(((1.0 + z) / (1.0 - z)) ** 1000, rel=1e-5)
 
 
-def test_nonlinear_fmu_follows_its_closed_form_for_other_parameters(nonlinear: Slave) -> None:
+def test_nonlinear_fmu_follows_its_closed_form_for_other_parameters(nonlinear: Path) -> None:
     # omega = 2 rad/s, a = 0.5 1/s, start (0.6, 0.8): RK4 with h = 0.01 s over 1 s.
     start = {"omega": 2.0, "a": 0.5, "x": 0.6, "y": 0.8}
-    final = nonlinear.run(RK4, 0.01, 1.0, 1, start, ["x", "y"])[-1]
+    final = run(nonlinear, RK4, 0.01, 1.0, 1, start, ["x", "y"])[-1]
     exact = nonlinear_exact(1.0, omega=2.0, a=0.5, x0=0.6, y0=0.8)
     assert np.linalg.norm(final - exact) < 1e-7  # measured 2.0e-8
     # The same run from the default start is far off: the parameters were really used.
-    assert np.linalg.norm(nonlinear.run(RK4, 0.01, 1.0, 1, {}, ["x", "y"])[-1] - exact) > 0.1
+    assert np.linalg.norm(run(nonlinear, RK4, 0.01, 1.0, 1, {}, ["x", "y"])[-1] - exact) > 0.1
 
 
 def main() -> None:
     """Print the measured orders and stability limits (python tests/test_solvers.py)."""
-    import tempfile
-
-    tmp = Path(tempfile.mkdtemp())
-    nl, dq = Slave("nonlinear", tmp), Slave("dahlquist", tmp)
+    nl, dq = fmubuild.fmu_path("nonlinear"), fmubuild.fmu_path("dahlquist")
     steps = [40, 80, 160, 320]
     for kind in ORDERS:
         orders = []
@@ -317,7 +269,7 @@ def main() -> None:
         found = bisect_limit(dq, kind, 0.5 * limit, 1.5 * limit)
         print(f"{NAMES[kind]:12s} limit {found:.5f} (exact {limit:.5f}, {(found - limit) / limit:+.2%})")
     for kind in (SI_EULER, SI_MIDPOINT):
-        y = dq.run(kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
+        y = run(dq, kind, 1.0, 100.0, 20, {"lambda": -1e6, "y0": 1.0}, ["y"])[:, 0]
         print(f"{NAMES[kind]:12s} z = -1e6: max |y| {np.max(np.abs(y)):.6g}, y(2000) {y[-1]:.6g}")
 
 

@@ -1,9 +1,7 @@
 /* solver_driver.c: runs fmus/solvers on plain C right-hand sides, for tests/test_solvers.py.
  *
- *   solver_driver ode <problem> <kind> <h> <steps> <param> <jac 0|1>
- *       problem "dahlquist": x' = param * x, x(0) = 1
- *       problem "nonlinear": the system of fmus/nonlinear (omega = param, a = 1),
- *                            x(0) = (1, 0)
+ *   solver_driver ode <kind> <h> <steps> <omega> <jac 0|1>
+ *       the system of fmus/nonlinear (a = 1) from x(0) = (1, 0);
  *       prints the final state, one value per line (%.17g)
  *   solver_driver lu <n>
  *       reads an n x n matrix (row major) and a right-hand side from stdin,
@@ -63,37 +61,26 @@ static int nonlinear_j(void *ctx, double t, const double *x, double *J)
 
 static int run_ode(int argc, char **argv)
 {
-    if (argc != 8) {
-        fprintf(stderr, "usage: ode <problem> <kind> <h> <steps> <param> <jac 0|1>\n");
+    if (argc != 7) {
+        fprintf(stderr, "usage: ode <kind> <h> <steps> <omega> <jac 0|1>\n");
         return 2;
     }
-    int nonlinear = strcmp(argv[2], "nonlinear") == 0;
-    if (!nonlinear && strcmp(argv[2], "dahlquist") != 0) {
-        fprintf(stderr, "unknown problem '%s'\n", argv[2]);
-        return 2;
-    }
-    SolverKind kind = (SolverKind)atoi(argv[3]);
-    double h = atof(argv[4]);
-    long steps = atol(argv[5]);
-    Ctx ctx = {atof(argv[6]), 0};
-    int use_jac = atoi(argv[7]);
-    int n = nonlinear ? 2 : 1;
+    SolverKind kind = (SolverKind)atoi(argv[2]);
+    double h = atof(argv[3]);
+    long steps = atol(argv[4]);
+    Ctx ctx = {atof(argv[5]), 0};
+    JacFn j = atoi(argv[6]) ? nonlinear_j : NULL;
     double x[2] = {1.0, 0.0};
-    double *memory = calloc(solver_memory_size(n), sizeof(double));
-    SolverWork *w = solver_work_new(n);
-    RhsFn f = nonlinear ? nonlinear_f : dahlquist_f;
-    JacFn j = use_jac ? (nonlinear ? nonlinear_j : dahlquist_j) : NULL;
+    double *memory = calloc(solver_memory_size(2), sizeof(double));
+    SolverWork *w = solver_work_new(2);
     for (long k = 0; k < steps; k++) {
-        int status = solver_step(kind, memory, w, n, f, j, &ctx, (double)k * h, h, x);
+        int status = solver_step(kind, memory, w, 2, nonlinear_f, j, &ctx, (double)k * h, h, x);
         if (status != 0) {
             printf("error %d\n", status);
             return 0;
         }
     }
-    for (int i = 0; i < n; i++) {
-        printf("%.17g\n", x[i]);
-    }
-    printf("evaluations %ld\n", ctx.evaluations);
+    printf("%.17g\n%.17g\n", x[0], x[1]);
     solver_work_free(w);
     free(memory);
     return 0;
