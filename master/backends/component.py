@@ -42,6 +42,19 @@ UNSTABLE_HINT = (
 )
 
 
+def history_capacity(plan: Plan, name: str) -> int:
+    """Samples in the ring of `name`'s outputs: k + p + 2, p the highest order of its links.
+
+    In macro step n the component writes samples n k+1 .. (n+1) k while a consumer of order p
+    may still read n k-p .. n k (Jacobi: in another process at the same time), so k + p + 1
+    samples must coexist; the ring keeps one more. p counts links into `name` as well as out
+    of it, which only enlarges the ring.
+    """
+    pc = plan.component(name)
+    p = max((lk.order for lk in plan.links if name in (lk.source, lk.consumer)), default=0)
+    return pc.ratio + p + 2
+
+
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
     """Real variables of `name` read at each communication point: coupled outputs, then recorded."""
     out: list[str] = []
@@ -118,9 +131,18 @@ class ComponentRunner:
     Per macro step: every link's polynomials for all its steps at once (input array `u`,
     blocks as in `_InLink`), then per step raw FMI calls on prepared pointers (inputs from a row
     of `u`, outputs straight into the history ring), then one divergence check of the history.
+    history: the ring the outputs go to (`history_capacity` rows, one column per output name),
+    e.g. in shared memory; None: a private one.
     """
 
-    def __init__(self, plan: Plan, pc: PlanComponent, fmu: Fmu, out_names: dict[str, list[str]]):
+    def __init__(
+        self,
+        plan: Plan,
+        pc: PlanComponent,
+        fmu: Fmu,
+        out_names: dict[str, list[str]],
+        history: History | None = None,
+    ):
         self.plan = plan
         self.pc = pc
         self.fmu = fmu
@@ -167,10 +189,14 @@ class ComponentRunner:
             ptrs = [ctypes.c_void_p(self.u[m, nv].ctypes.data) for m in range(k)]
             self._deriv = (vrs, ctypes.c_size_t(nd), orders, ptrs)
         self._u_rows = [[ctypes.c_void_p(self.u[m, b].ctypes.data) for m in range(k)] for b in range(nv)]
-        # a consumer of order p reads samples back to p before the macro step start, while this
-        # component may already have written the whole macro step: k + p + 1 samples coexist
-        max_order = max([lk.order for lk in plan.links if pc.name in (lk.source, lk.consumer)], default=0)
-        self.history = History(self.out.n, pc.ratio + max_order + 2)
+        cap = history_capacity(plan, pc.name)
+        if history is None:
+            history = History(self.out.n, cap)
+        elif history.buf.shape != (cap, self.out.n):
+            raise ValueError(
+                f"{self.name}: output history of shape {history.buf.shape}, {(cap, self.out.n)} needed"
+            )
+        self.history = history
         self.reads = samples_read(plan, pc.name)  # reads[m]: outputs are read after step m
         self._rows_of: np.ndarray | None = None  # the history buffer `_rows` point into
         self.fmu_time = 0.0  # wall time inside FMI calls (s)

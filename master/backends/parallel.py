@@ -4,9 +4,9 @@ The workers run exactly the serial backend's per-component code (`ComponentRunne
 output histories it reads and writes are numpy views on shared memory, so a consumer in one
 process extrapolates from the very samples its source wrote in another, and the results are
 bit for bit those of the serial backend.  The paper copies shared values into locals before
-a step so that a concurrent producer cannot change them; here each output ring holds k + p + 1
-samples (`history_capacity`), so a producer writing macro step n never touches the samples
-its consumers of order p are reading, and no copy is needed.
+a step so that a concurrent producer cannot change them; here each output ring holds more
+than k + p samples (`history_capacity`), so a producer writing macro step n never touches
+the samples its consumers of order p are reading, and no copy is needed.
 
 Per macro step the master sends one command to all workers and waits once (`WorkerPool`);
 with Gauss-Seidel links (a source that must finish the macro step before its consumer
@@ -27,7 +27,13 @@ from functools import partial
 
 import numpy as np
 
-from master.backends.component import ComponentRunner, SimulationError, open_fmu, output_names
+from master.backends.component import (
+    ComponentRunner,
+    SimulationError,
+    history_capacity,
+    open_fmu,
+    output_names,
+)
 from master.backends.shm import SharedArrays
 from master.backends.worker import NOP, WorkerFailure, WorkerPool
 from master.coupling import History
@@ -57,17 +63,6 @@ def levels(plan: Plan) -> dict[str, int]:
             (out[lk.source] + 1 for lk in plan.links_into(pc.name) if lk.source_first), default=0
         )
     return out
-
-
-def history_capacity(plan: Plan, name: str, runner_capacity: int) -> int:
-    """Ring size for `name`'s outputs when producer and consumers run concurrently.
-
-    In a Jacobi macro step n the source writes samples n k+1 .. (n+1) k while a consumer of
-    order p reads n k-p .. n k: k + p + 1 samples must coexist.
-    """
-    pc = plan.component(name)
-    p_out = max((lk.order for lk in plan.links if lk.source == name), default=0)
-    return max(runner_capacity, pc.ratio + p_out + 2)
 
 
 def record_due(plan: Plan, n: int) -> bool:
@@ -103,12 +98,12 @@ class _GroupTask:
             where[0] = i
             fmu = open_fmu(sc, sc.component(name))
             try:
-                r = ComponentRunner(self.plan, self.plan.component(name), fmu, self.outs)
+                pc = self.plan.component(name)
+                r = ComponentRunner(self.plan, pc, fmu, self.outs, self.histories[name])
             except BaseException:
                 fmu.close()
                 raise
             self.runners.append(r)
-            r.history = self.histories[name]
 
     def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
         """Run one command for the components of this worker, in stepping order.
@@ -178,15 +173,11 @@ class ParallelBackend:
         sc = self.plan.scenario
         outs: dict[str, list[str]] = {}
         layout: dict = {}
-        max_in = {
-            pc.name: max((lk.order for lk in self.plan.links_into(pc.name)), default=0)
-            for pc in self.plan.components
-        }
         for pc in self.plan.components:
             variables = variables_of(read_description(sc.component(pc.name).fmu_path))
             outs[pc.name] = output_names(self.plan, pc.name, variables)
         for pc in self.plan.components:
-            cap = history_capacity(self.plan, pc.name, pc.ratio + max_in[pc.name] + 2)
+            cap = history_capacity(self.plan, pc.name)
             layout[f"hist:{pc.name}"] = ((cap, len(outs[pc.name])), "float64")
         n = len(self.plan.components)
         layout["rec"] = ((1 + len(self.plan.record),), "float64")
