@@ -211,8 +211,6 @@ class ParallelBackend:
             self.pool.run(OP_RECORD, -1)
         except WorkerFailure as e:
             raise self._error(e, t0, "during initialisation") from None
-        except KeyboardInterrupt:
-            raise SimulationError("interrupted (SIGINT) during initialisation", "", t0) from None
 
     def _sweeps(self) -> None:
         """One initial sweep per component, in stepping order, each in its own worker."""
@@ -242,9 +240,6 @@ class ParallelBackend:
                     run(OP_RECORD, n)
         except WorkerFailure as e:
             raise self._error(e, self.plan.macro_clock.time(n), self._span(n)) from None
-        except KeyboardInterrupt:
-            t = self.plan.macro_clock.time(n)
-            raise SimulationError(f"interrupted (SIGINT) {self._span(n)}", "", t) from None
 
     def _span(self, n: int) -> str:
         clock = self.plan.macro_clock
