@@ -67,18 +67,14 @@ class History:
         """`buf` (capacity x n_values float64), e.g. in shared memory; None: a private array."""
         self.capacity = capacity
         self.buf = np.zeros((capacity, n_values)) if buf is None else buf
-        self.latest = -1  # index of the newest sample
 
     def copy(self) -> History:
         """An independent copy (a start-up sweep reads the previous sweep's samples from it)."""
-        h = History(self.buf.shape[1], self.capacity, self.buf.copy())
-        h.latest = self.latest
-        return h
+        return History(self.buf.shape[1], self.capacity, self.buf.copy())
 
     def push(self, j: int, values: np.ndarray) -> None:
         """Store sample j (must be the next one)."""
         self.buf[j % self.capacity] = values
-        self.latest = j
 
     def combine(self, j_end: int, w: np.ndarray, columns: np.ndarray, out: np.ndarray) -> None:
         """out = sum_i w[i] * sample(j_end - i)[columns]: the polynomial's value (or derivative)."""

@@ -148,7 +148,6 @@ class RealPort:
         self.count = ctypes.c_size_t(n)
         self.values = np.zeros(n)
         self._ptr = self.values.ctypes.data_as(DOUBLE_P)
-        self.orders: dict[int, ctypes.Array] = {}  # derivative order -> prepared order vector
 
     def get(self) -> np.ndarray:
         """Read the variables into `values` (one call) and return it."""
@@ -180,7 +179,8 @@ class Fmu:
     """One instance of a Co-Simulation FMU.
 
     Life cycle: `Fmu(path, name)` extracts and loads; `set_values()` for parameters and start
-    values; `initialize(start, stop)`; then `do_step()` and `RealPort` get/set; `close()`.
+    values; `enter_initialization(start, stop)`, `exit_initialization()`; then the raw calls
+    (`raw_do_step`, `RealPort` get/set); `close()`.
     """
 
     def __init__(self, path: Path, instance_name: str, workdir: Path | None = None):
@@ -189,9 +189,6 @@ class Fmu:
         self.md = read_description(self.path)
         self.fmi3 = self.md.fmiVersion.startswith("3.")
         self.variables = variables_of(self.md)
-        cs = self.md.coSimulation
-        self.can_interpolate_inputs = bool(cs.canInterpolateInputs) and not self.fmi3
-        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
         self._own_dir = workdir is None
@@ -206,11 +203,6 @@ class Fmu:
             raise
 
     # -- loading ------------------------------------------------------------------------------
-    def _log(self, env, instance, status, category, message) -> None:
-        """FMU log callback (FMI 2 and 3 signatures differ only in argument count)."""
-        msg = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.last_log = msg
-
     def _load(self) -> None:
         kw = dict(
             guid=self.md.instantiationToken if self.fmi3 else self.md.guid,
@@ -391,25 +383,6 @@ class Fmu:
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
-    def set_input_derivatives(self, port: RealPort, order: int, values: np.ndarray) -> None:
-        """fmi2SetRealInputDerivatives: derivative `order` of the inputs of `port` (units/s^order).
-
-        `values` must be a float64 array of length port.n.
-        """
-        orders = port.orders.get(order)
-        if orders is None:
-            orders = port.orders[order] = (ctypes.c_int * max(port.n, 1))(*([order] * port.n))
-        self.set_input_derivatives_raw(port.vrs, port.count, orders, values.ctypes.data_as(DOUBLE_P))
-
-    def set_input_derivatives_raw(self, vrs: object, count: object, orders: object, ptr: object) -> None:
-        """fmi2SetRealInputDerivatives on prepared ctypes arguments (value references, c_size_t count,
-        c_int orders, double pointer); each value may have its own derivative order."""
-        if self.fmi3:
-            raise FmuError(self.describe("input derivatives are an FMI 2 feature"))
-        status = self.raw_set_input_derivatives(self.handle, vrs, count, orders, ptr)
-        if status > OK_STATUS:
-            raise self.call_error("set_input_derivatives", status)
-
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""
         try:
@@ -429,12 +402,6 @@ class Fmu:
             self.slave.freeFMUState(state) if self.fmi3 else self.slave.freeFMUstate(state)
         except FMICallException as e:
             raise FmuError(self.describe(f"cannot free the FMU state: {e}")) from e
-
-    def do_step(self, t: float, h: float) -> None:
-        """Advance from communication point t by h (s); FmuError if the FMU refuses."""
-        status = self.raw_do_step(self.handle, ctypes.c_double(t), ctypes.c_double(h), NO_STATE_RESTORED)
-        if status > OK_STATUS:
-            raise self.call_error("do_step", status)
 
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files; safe to call twice."""

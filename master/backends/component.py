@@ -143,7 +143,6 @@ class ComponentRunner:
         out_names: dict[str, list[str]],
         history: History | None = None,
     ):
-        self.plan = plan
         self.pc = pc
         self.fmu = fmu
         self.name = pc.name
@@ -371,7 +370,6 @@ class ComponentRunner:
             ) from e
         self.fmu_time += inside
         self.steps += k
-        hist.latest = j
         if not np.multiply(self._flat, self._flat, self._squares) @ self._inv_bound2 <= 1.0:
             self._check(j0, j)
 

@@ -59,7 +59,6 @@ class Progress:
     def __init__(self, total: int):
         self.total = total
         self.shown = -1
-        self.t0 = time.perf_counter()
 
     def update(self, n: int) -> None:
         pct = 100 * n // self.total
