@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 import master.api as api
-from master.backends.parallel import choose_backend, cpu_count
-from master.backends.worker import NOP, WorkerPool
+from master.backends.parallel import choose_backend
+from master.backends.worker import NOP, WorkerPool, cpu_count
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
 

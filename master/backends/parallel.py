@@ -19,7 +19,6 @@ writes the rows of the completed macro steps.  Times are in seconds.
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 import time
@@ -35,7 +34,7 @@ from master.backends.component import (
     output_names,
 )
 from master.backends.shm import SharedArrays
-from master.backends.worker import NOP, WorkerFailure, WorkerPool
+from master.backends.worker import NOP, WorkerFailure, WorkerPool, cpu_count
 from master.coupling import History
 from master.fmu import FmuError, read_description, variables_of
 from master.schedule import Plan
@@ -277,14 +276,6 @@ class ParallelBackend:
             if self.tmp is not None:
                 shutil.rmtree(self.tmp, ignore_errors=True)
                 self.tmp = None
-
-
-def cpu_count() -> int:
-    """Processors this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
 
 
 # -- automatic choice -------------------------------------------------------------------------

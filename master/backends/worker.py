@@ -149,7 +149,8 @@ def _spin_acquire(sem, spin: float) -> None:
     sem.acquire()
 
 
-def _cpus() -> int:
+def cpu_count() -> int:
+    """Processors this process may run on (its affinity mask, where the system has one)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:
@@ -201,7 +202,7 @@ class WorkerPool:
         self.last_wait = 0.0  # s: how long the master waited for the previous command
         try:
             parent = None if start_method == "forkserver" else os.getpid()  # forkserver: its server forks
-            spin = SPIN_S if w <= _cpus() else 0.0  # pollers must not take processors from workers
+            spin = SPIN_S if w <= cpu_count() else 0.0  # pollers must not take processors from workers
             for i, (_, factory) in enumerate(tasks):
                 p = ctx.Process(
                     target=_worker_main,
