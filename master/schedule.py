@@ -134,6 +134,10 @@ class Plan:
     def links_into(self, name: str) -> list[Link]:
         return [lk for lk in self.links if lk.consumer == name]
 
+    def record_due(self, n: int) -> bool:
+        """Whether a row is recorded after macro step n: every `record_every` steps, and the last."""
+        return (n + 1) % self.record_every == 0 or n + 1 == self.n_macro
+
     def describe(self) -> str:
         """Human-readable schedule (for `master info`)."""
         sc = self.scenario

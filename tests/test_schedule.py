@@ -103,6 +103,8 @@ def test_plan_links_orders_and_recording():
     assert by[("b", "a")].order == 0 and by[("b", "a")].source_first
     assert plan.record == (("a", "y"), ("a", "n"), ("b", "y"))  # all outputs by default
     assert plan.record_every == 3
+    # rows after every third of the 10 macro steps, and after the last (at the stop time)
+    assert [n for n in range(plan.n_macro) if plan.record_due(n)] == [2, 5, 8, 9]
     assert plan.component("a").step == Fraction(1, 20)
 
 

@@ -97,7 +97,6 @@ def execute(
         macro_steps=0,
     )
     bar = Progress(plan.n_macro) if progress else None
-    every = plan.record_every
     wall0 = time.perf_counter()
     n = 0
     try:
@@ -107,10 +106,10 @@ def execute(
         backend.record(-1, row)
         recorder.commit()
         pacer = Pacer(real_time, H) if real_time else None
-        step, record, time_of, last = backend.step, backend.record, plan.macro_clock.time, plan.n_macro - 1
+        step, record, due, time_of = backend.step, backend.record, plan.record_due, plan.macro_clock.time
         for n in range(plan.n_macro):
             step(n)
-            if (n + 1) % every == 0 or n == last:
+            if due(n):
                 row = recorder.next_row()
                 row[0] = time_of(n + 1)
                 record(n, row)

@@ -64,11 +64,6 @@ def levels(plan: Plan) -> dict[str, int]:
     return out
 
 
-def record_due(plan: Plan, n: int) -> bool:
-    """Whether the driver records a row after macro step n (its rule, repeated for the workers)."""
-    return (n + 1) % plan.record_every == 0 or n + 1 == plan.n_macro
-
-
 class _GroupTask:
     """The components of one worker: built in the worker process by `WorkerPool`."""
 
@@ -128,7 +123,7 @@ class _GroupTask:
                 r.exit_initialization()
             elif op == OP_STEP:
                 r.macro_step(a, self.histories)
-                if a >= self.plan.startup_steps and record_due(self.plan, a):
+                if a >= self.plan.startup_steps and self.plan.record_due(a):
                     r.record(a, rec)
             elif op == OP_SAVE:
                 self.saved[r.name] = r.fmu_call(a, r.fmu.get_state)
@@ -235,7 +230,7 @@ class ParallelBackend:
                     run(OP_SNAPSHOT)
                     run(OP_RELAXED, n)
                 run(OP_FREE, n)
-                if record_due(self.plan, n):
+                if self.plan.record_due(n):
                     run(OP_RECORD, n)
         except WorkerFailure as e:
             raise self._error(e, self.plan.macro_clock.time(n), self._span(n)) from None
