@@ -108,8 +108,9 @@ def assert_identical(sc: Scenario) -> np.ndarray:
         dict(order=3, interpolate=(False, False)),
         dict(ratios=(1, 4), order=1, interpolate=(False, False)),
         dict(coupling="gauss-seidel", order=2),
+        dict(coupling="gauss-seidel", order=1, ratios=(1, 3), interpolate=(True, False)),
     ],
-    ids=["jacobi-interpolating", "jacobi-order3", "multirate-1-4", "gauss-seidel"],
+    ids=["jacobi-interpolating", "jacobi-order3", "multirate-1-4", "gauss-seidel", "gauss-seidel-1-3"],
 )
 def test_oscillator_bitwise_equal_to_serial(variant):
     d = assert_identical(oscillator(**variant))
