@@ -10,29 +10,18 @@ from pathlib import Path
 from master import api
 from master.backends.component import SimulationError
 from master.fmu import FmuError
+from master.scenario import ScenarioError
 from master.schedule import PlanError
 
 USER_ERRORS: tuple[type[BaseException], ...] = (
     api.UsageError,
     FmuError,
     PlanError,
+    ScenarioError,
     SimulationError,
     FileNotFoundError,
     ValueError,
 )
-
-
-def _scenario_errors() -> tuple[type[BaseException], ...]:
-    """Exception classes of the scenario reader (user errors in scenario files)."""
-    try:
-        import master.scenario as s
-    except ImportError:
-        return ()
-    return tuple(
-        v
-        for k, v in vars(s).items()
-        if k.endswith("Error") and isinstance(v, type) and issubclass(v, Exception)
-    )
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -116,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return _dispatch(args, quiet)
-    except USER_ERRORS + _scenario_errors() as e:
+    except USER_ERRORS as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
@@ -153,7 +142,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         problems = api.validate(args.scenario)
         for pr in problems:
             print(pr)
-        if not problems and not getattr(args, "quiet", False):
+        if not problems:
             print(f"{args.scenario}: ok")
         return 1 if problems else 0
     if args.command == "info":

@@ -8,6 +8,7 @@ run of any length ends exactly at the stop time. Times are in seconds.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -41,7 +42,7 @@ class Clock:
     @staticmethod
     def make(start: Fraction, macro_step: Fraction, ratio: int) -> Clock:
         h = macro_step / ratio
-        den = start.denominator * h.denominator // _gcd(start.denominator, h.denominator)
+        den = math.lcm(start.denominator, h.denominator)
         return Clock(start.numerator * (den // start.denominator), h.numerator * (den // h.denominator), den)
 
     def time(self, j: int) -> float:
@@ -51,12 +52,6 @@ class Clock:
     def exact(self, j: int) -> Fraction:
         """Communication point j as an exact rational (s)."""
         return Fraction(self.num0 + j * self.dnum, self.den)
-
-
-def _gcd(a: int, b: int) -> int:
-    while b:
-        a, b = b, a % b
-    return a
 
 
 @dataclass(frozen=True)
@@ -249,6 +244,7 @@ def build_plan(
             (cn.start_connector, cn.end_connector)
         )
     links = []
+    startup_steps = 0
     for (src, dst, order_), pairs in groups.items():
         first = sc.coupling == "gauss-seidel" and rank[src] < rank[dst]
         lk = Link(
@@ -263,13 +259,13 @@ def build_plan(
         )
         links.append(lk)
         su = lk.startup()
+        startup_steps = max(startup_steps, len(su))
         if su:
             steps = ", ".join(f"order {o} in macro step {n}" for n, o in su)
             notes.append(
                 f"start-up: {src} -> {dst} ({', '.join(lk.inputs)}) uses {steps}; "
                 f"full order {order_} from t = {float(start + len(su) * H):g} s"
             )
-    startup_steps = max((len(lk.startup()) for lk in links), default=0)
     startup_sweeps = 0
     if startup_steps:
         if all(capabilities.get(n, Capability()).can_get_set_state for n in names):
