@@ -179,8 +179,8 @@ class Fmu:
     """One instance of a Co-Simulation FMU.
 
     Life cycle: `Fmu(path, name)` extracts and loads; `set_values()` for parameters and start
-    values; `enter_initialization(start, stop)`, `exit_initialization()`; then the raw calls
-    (`raw_do_step`, `RealPort` get/set); `close()`.
+    values; `enter_initialization(start, stop)`, `exit_initialization()`; then `do_step()` (or
+    the raw calls of the stepping loop) and `RealPort` get/set; `close()`.
     """
 
     def __init__(self, path: Path, instance_name: str, workdir: Path | None = None):
@@ -402,6 +402,12 @@ class Fmu:
             self.slave.freeFMUState(state) if self.fmi3 else self.slave.freeFMUstate(state)
         except FMICallException as e:
             raise FmuError(self.describe(f"cannot free the FMU state: {e}")) from e
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from communication point t by h (s); FmuError if the FMU refuses."""
+        status = self.raw_do_step(self.handle, ctypes.c_double(t), ctypes.c_double(h), NO_STATE_RESTORED)
+        if status > OK_STATUS:
+            raise self.call_error("do_step", status)
 
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files; safe to call twice."""
