@@ -1,7 +1,7 @@
 """Master overhead per macro step and real-time factor, serial backend.
 
-    /work/venv/bin/python benchmarks/overhead.py            # hydraulic scene (both forms), oscillator
-    /work/venv/bin/python benchmarks/overhead.py --memory   # peak memory, 10^3 vs 10^6 recorded steps
+    .venv/bin/python benchmarks/overhead.py            # hydraulic scene (both forms), oscillator
+    .venv/bin/python benchmarks/overhead.py --memory   # peak memory, 10^3 vs 10^6 recorded steps
 
 Overhead = (wall time - time inside FMI calls) / macro steps: what the master itself costs.
 The hydraulic-manipulator scene runs at the paper's steps (mechanics 1e-3 s, hydraulics 2e-4 s,

@@ -1,6 +1,6 @@
 """Serial vs parallel backend, measured side by side in one run (not a test: numbers vary by machine).
 
-Run: /work/venv/bin/python benchmarks/parallel.py [--quick] [--compare-sync] [--start-methods]
+Run: .venv/bin/python benchmarks/parallel.py [--quick] [--compare-sync] [--start-methods]
 
 Prints wall times of both backends for the paper scenes (when present in models/) and for a
 heavy scene of two crashtest FMUs burning `cost_us` of CPU per step, the speed-up, the

@@ -1,6 +1,6 @@
 """Two-mass oscillator benchmark (parameter set A) split into two msd FMUs: error table.
 
-Run: /work/venv/bin/python examples/oscillator.py
+Run: .venv/bin/python examples/oscillator.py
 Global error = max over the macro points of |x1 - x1_exact| on [0, 10] s, exact solution from
 the matrix exponential. The FMUs integrate with RK4 at a fine internal step, so the error is
 the coupling error.

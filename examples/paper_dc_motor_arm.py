@@ -8,7 +8,7 @@ macro-step map, master.evidence.linear) and measured on the runtime by bisection
 steps.  It then plots the joint angles (Fig. 8) at the paper's steps against the Model
 Exchange reference.
 
-Run: /work/venv/bin/python examples/paper_dc_motor_arm.py [--out docs/evidence]
+Run: .venv/bin/python examples/paper_dc_motor_arm.py [--out docs/evidence]
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Everything in docs/evidence/, by one command: the work-precision sweeps of the three scenes,
 the paper's experiments 1 and 2, and the stability limits against extrapolation order.
 
-Run: /work/venv/bin/python examples/paper_evidence.py   (about 5 to 10 minutes on 2 cores)
+Run: .venv/bin/python examples/paper_evidence.py   (about 5 to 10 minutes on 2 cores)
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ and the monolithic Model Exchange reference (Radau, rtol 1e-10).  Plots the vert
 velocity and acceleration of body 6 (Fig. 5) and prints the measured errors against the
 reference and the differences from the single-rate run.
 
-Run: /work/venv/bin/python examples/paper_hydraulic_manipulator.py [--out docs/evidence]
+Run: .venv/bin/python examples/paper_hydraulic_manipulator.py [--out docs/evidence]
 """
 
 from __future__ import annotations

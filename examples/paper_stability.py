@@ -12,7 +12,7 @@ hydraulic scene a run is stable if the ringing the valve steps excite dies out (
 `ringing_dies_out`): an unstable run there grows into the pressure clamps within a fraction of
 a second and then rings at a constant amplitude, which the generic test reads as stable.
 
-Run: /work/venv/bin/python examples/paper_stability.py [--out docs/evidence]
+Run: .venv/bin/python examples/paper_stability.py [--out docs/evidence]
 """
 
 from __future__ import annotations

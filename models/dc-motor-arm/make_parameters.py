@@ -9,7 +9,7 @@ motors.ssv     start currents of the motors FMU: the holding currents i* of cont
 controller.ssv (gains, set points, holding currents, Table 3 motor data) is written by
 place_poles.py; run that first if the FMUs changed.
 
-Run:  /work/venv/bin/python models/dc-motor-arm/make_parameters.py
+Run:  .venv/bin/python models/dc-motor-arm/make_parameters.py
 """
 
 from __future__ import annotations

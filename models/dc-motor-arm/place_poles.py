@@ -11,7 +11,7 @@ B = dF/du, and scipy.signal.place_poles gives K
 with eig(A - B K) = POLES.  The gains, set points and holding currents are written to
 controller.ssv (SSP 1.0 ParameterValues) beside this file.
 
-Run:  /work/venv/bin/python models/dc-motor-arm/place_poles.py
+Run:  .venv/bin/python models/dc-motor-arm/place_poles.py
 """
 
 from __future__ import annotations

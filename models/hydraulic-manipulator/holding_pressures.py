@@ -12,7 +12,7 @@ step is exact, a second polishes), and each cylinder gets the centred pressures
 like the paper's (its p_left + p_right = p_s).  They are written as start values of the
 hydraulics FMU to hydraulics.ssv (SSP 1.0 ParameterValues) beside this file.
 
-Run:  /work/venv/bin/python models/hydraulic-manipulator/holding_pressures.py
+Run:  .venv/bin/python models/hydraulic-manipulator/holding_pressures.py
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ Not here: the start pressures.  Table 2's initial pressures belong to the paper'
 geometry; the scene starts from the pressures that hold our arm at rest, written to
 hydraulics.ssv by holding_pressures.py beside this file.
 
-Run:  /work/venv/bin/python models/hydraulic-manipulator/make_parameters.py
+Run:  .venv/bin/python models/hydraulic-manipulator/make_parameters.py
 """
 
 from __future__ import annotations
