@@ -33,8 +33,22 @@ RAW_NAMES = {
         "set_real": "fmi2SetReal",
         "do_step": "fmi2DoStep",
         "set_input_derivatives": "fmi2SetRealInputDerivatives",
+        "get_integer": "fmi2GetInteger",
+        "get_boolean": "fmi2GetBoolean",
+        "get_state": "fmi2GetFMUstate",
+        "set_state": "fmi2SetFMUstate",
+        "free_state": "fmi2FreeFMUstate",
     },
-    "3": {"get_real": "fmi3GetFloat64", "set_real": "fmi3SetFloat64", "do_step": "fmi3DoStep"},
+    "3": {
+        "get_real": "fmi3GetFloat64",
+        "set_real": "fmi3SetFloat64",
+        "do_step": "fmi3DoStep",
+        "get_integer": "fmi3GetInt32",
+        "get_boolean": "fmi3GetBoolean",
+        "get_state": "fmi3GetFMUState",
+        "set_state": "fmi3SetFMUState",
+        "free_state": "fmi3FreeFMUState",
+    },
 }
 
 

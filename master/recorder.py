@@ -47,15 +47,23 @@ class Recorder:
         if self.fill == len(self.chunk):
             self.flush()
 
+    def write(self, rows: np.ndarray) -> None:
+        """Append a block of filled rows (n x len(columns)), e.g. the kernel's results buffer."""
+        if len(rows):
+            self.flush()
+            self._append(rows)
+            self.rows += len(rows)
+
     def flush(self) -> None:
         """Write the buffered rows to disk."""
-        if not self.fill:
-            return
-        block = self.chunk[: self.fill]
+        if self.fill:
+            self._append(self.chunk[: self.fill])
+            self.fill = 0
+
+    def _append(self, block: np.ndarray) -> None:
         self._bin.write(block.tobytes())
         if self._csv is not None:
             np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
-        self.fill = 0
 
     def close(self) -> None:
         """Flush and close the files (the results stay readable through `data()`)."""
@@ -94,6 +102,9 @@ class RunSummary:
     overruns: int | None = None  # --real-time only: macro steps that ended late
     worst_lateness: float | None = None  # s
     idle_time: float = 0.0  # s waiting for the wall clock (--real-time), not overhead
+    lateness: dict[str, float] | None = (
+        None  # --real-time: frame lateness quantiles "p50", "p99", "p99.9" (s)
+    )
     output: str | None = None
 
     @property
@@ -125,6 +136,9 @@ class RunSummary:
                 f"  real time: {self.overruns} frame overruns, worst lateness {late_ms:.3f} ms, "
                 f"{self.idle_time:.3f} s waiting for the clock"
             )
+        if self.lateness:
+            quantiles = ", ".join(f"{q} {v * 1e6:.0f} us" for q, v in self.lateness.items())
+            lines.append(f"  frame lateness: {quantiles}")
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")
         return "\n".join(lines)

@@ -37,6 +37,7 @@ from master.backends.shm import SharedArrays
 from master.backends.worker import NOP, WorkerFailure, WorkerPool, cpu_count
 from master.coupling import History
 from master.fmu import FmuError, read_description, variables_of
+from master.recorder import Recorder
 from master.schedule import Plan
 
 # worker commands (see _GroupTask.command and _TrialTask.command)
@@ -162,6 +163,8 @@ class ParallelBackend:
         self.data: SharedArrays | None = None
         self.pool: WorkerPool | None = None
         self.tmp: str | None = None
+        self.pacer: Pacer | None = None
+        self.position = 0  # the next macro step to run (after a failure: the one that failed)
 
     def _layout(self) -> tuple[dict, dict[str, list[str]]]:
         sc = self.plan.scenario
@@ -194,8 +197,9 @@ class ParallelBackend:
                 e.cause if e.raised else f"component {e.component}: {e.cause} while loading"
             ) from None
 
-    def initialize(self) -> None:
-        """The serial backend's initialisation, component by component across the workers."""
+    def initialize(self, recorder: Recorder) -> None:
+        """The serial backend's initialisation, component by component across the workers; records
+        the row at the start time."""
         assert self.pool is not None
         t0 = float(self.plan.scenario.start_time)
         try:
@@ -205,6 +209,40 @@ class ParallelBackend:
             self.pool.run(OP_RECORD, -1)
         except WorkerFailure as e:
             raise self._error(e, t0, "during initialisation") from None
+        self._record(-1, recorder)
+
+    def pace(self, factor: float) -> None:
+        """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
+        self.pacer = Pacer(factor, float(self.plan.scenario.macro_step))
+
+    def pacing(self) -> dict | None:
+        """Real-time statistics as SerialBackend.pacing gives them, None when unpaced."""
+        return self.pacer.stats() if self.pacer is not None else None
+
+    def run(self, n_from: int, n_to: int, recorder: Recorder, budget: float = 0.0) -> int:
+        """Step macro steps n_from .. n_to - 1, for at most about `budget` s of wall time (0: no limit);
+        rows go to `recorder`. Returns the next macro step."""
+        end = time.perf_counter() + budget if budget > 0 else float("inf")
+        n = n_from
+        while n < n_to:
+            self.position = n
+            self.step(n)
+            if self.plan.record_due(n):
+                self._record(n, recorder)
+            n += 1
+            self.position = n
+            if self.pacer is not None:
+                self.pacer.wait(n)
+            if time.perf_counter() > end:
+                break
+        return n
+
+    def _record(self, n: int, recorder: Recorder) -> None:
+        assert self.data is not None
+        row = recorder.next_row()
+        row[0] = self.plan.macro_clock.time(n + 1)
+        row[1:] = self.data["rec"][1:]
+        recorder.commit()
 
     def _sweeps(self) -> None:
         """One initial sweep per component, in stepping order, each in its own worker."""
@@ -246,11 +284,6 @@ class ParallelBackend:
             return SimulationError(e.cause, comp, t if e.time is None else e.time)
         return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
 
-    def record(self, n: int, row: np.ndarray) -> None:
-        """Recorded values at the end of macro step n (n = -1: start time) into row[1:]."""
-        assert self.data is not None
-        row[1:] = self.data["rec"][1:]
-
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""
         names = [pc.name for pc in self.plan.components]
@@ -271,6 +304,48 @@ class ParallelBackend:
             if self.tmp is not None:
                 shutil.rmtree(self.tmp, ignore_errors=True)
                 self.tmp = None
+
+
+class Pacer:
+    """Paces macro steps to the wall clock: simulated time t is due at wall t0 + t / factor."""
+
+    def __init__(self, factor: float, macro_step: float):
+        if factor <= 0:
+            raise ValueError(f"real-time factor must be positive, got {factor}")
+        self.factor = factor
+        self.macro_step = macro_step
+        self.t0 = time.perf_counter()
+        self.late: list[float] = []  # s, per frame
+        self.overruns = 0
+        self.idle = 0.0  # s spent waiting for the wall clock
+
+    def wait(self, n_done: int) -> None:
+        """After n_done macro steps: sleep until they are due, or count an overrun."""
+        due = self.t0 + n_done * self.macro_step / self.factor
+        now = time.perf_counter()
+        if now > due:
+            self.overruns += 1
+            self.late.append(now - due)
+            return
+        if due - now > 2e-3:
+            time.sleep(due - now - 1e-3)  # sleep coarse, then spin the last millisecond for accuracy
+        while (t := time.perf_counter()) < due:
+            pass
+        self.idle += t - now
+        self.late.append(t - due)
+
+    def stats(self) -> dict[str, float]:
+        late = np.array(self.late or [0.0])
+        q = np.quantile(late, [0.5, 0.99, 0.999])
+        return {
+            "frames": len(self.late),
+            "overruns": self.overruns,
+            "p50": float(q[0]),
+            "p99": float(q[1]),
+            "p99.9": float(q[2]),
+            "worst": float(late.max()),
+            "idle": self.idle,
+        }
 
 
 # -- automatic choice -------------------------------------------------------------------------
@@ -299,20 +374,17 @@ class _TrialTask:
 
         res = self.out["trial"]
         be = SerialBackend(self.plan)
+        rec = Recorder(["time"] + [f"{c}.{v}" for c, v in self.plan.record])
         try:
             t0 = time.perf_counter()
             be.open()
-            be.initialize()
+            be.initialize(rec)
             res[0] = time.perf_counter() - t0
-            n0 = self.plan.startup_steps  # start-up steps repeat work: not typical
-            for n in range(min(n0, self.plan.n_macro)):
-                be.step(n)
+            n0 = min(self.plan.startup_steps, self.plan.n_macro)  # start-up steps repeat work: not typical
+            be.run(0, n0, rec)
             ft0 = be.stats()[1]
             t0 = time.perf_counter()
-            n = n0
-            while n < min(n0 + TRIAL_STEPS, self.plan.n_macro) and time.perf_counter() - t0 < TRIAL_BUDGET:
-                be.step(n)
-                n += 1
+            n = be.run(n0, min(n0 + TRIAL_STEPS, self.plan.n_macro), rec, TRIAL_BUDGET)
             res[2] = time.perf_counter() - t0
             res[1] = n - n0
             ft = be.stats()[1]
@@ -320,6 +392,7 @@ class _TrialTask:
                 res[3 + i] = ft[name] - ft0[name]
         finally:
             be.close()
+            rec.discard()
 
     def close(self) -> None:
         pass

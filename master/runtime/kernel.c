@@ -1,0 +1,377 @@
+/* The stepping kernel (see kernel.h): one macro step of one component, the start-up sweeps, the
+ * macro-step loop with recording and real-time pacing. */
+#define _POSIX_C_SOURCE 200809L
+#include "kernel.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <string.h>
+#include <time.h>
+
+/* FMI 2.0 and 3.0 calls, spelled with their ABI types (no FMI headers needed to build). */
+typedef int fmi2_do_step(void *, double, double, int);
+typedef int fmi2_set_real(void *, const uint32_t *, size_t, const double *);
+typedef int fmi2_get_real(void *, const uint32_t *, size_t, double *);
+typedef int fmi2_set_derivatives(void *, const uint32_t *, size_t, const int32_t *, const double *);
+typedef int fmi2_get_integer(void *, const uint32_t *, size_t, int32_t *);
+typedef int fmi2_get_boolean(void *, const uint32_t *, size_t, int32_t *);
+typedef int fmi3_do_step(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int fmi3_set_float64(void *, const uint32_t *, size_t, const double *, size_t);
+typedef int fmi3_get_float64(void *, const uint32_t *, size_t, double *, size_t);
+typedef int fmi3_get_int32(void *, const uint32_t *, size_t, int32_t *, size_t);
+typedef int fmi3_get_boolean(void *, const uint32_t *, size_t, bool *, size_t);
+typedef int fmi_get_state(void *, void **);
+typedef int fmi_set_state(void *, void *);
+typedef int fmi_free_state(void *, void **);
+
+#define STATUS_OK 1 /* fmi2Warning / fmi3Warning: anything above is a failure */
+
+void mk_layout(int64_t *sizes) {
+    sizes[0] = (int64_t)sizeof(mk_link);
+    sizes[1] = (int64_t)sizeof(mk_stimulus);
+    sizes[2] = (int64_t)sizeof(mk_component);
+    sizes[3] = (int64_t)sizeof(mk_record);
+    sizes[4] = (int64_t)sizeof(mk_error);
+    sizes[5] = (int64_t)sizeof(mk_pacing);
+    sizes[6] = (int64_t)sizeof(mk_kernel);
+}
+
+static int64_t now_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+static double point_time(const mk_component *c, int64_t j) {
+    return (double)(c->num0 + j * c->dnum) / (double)c->den;
+}
+
+static int32_t fail(mk_kernel *k, int32_t code, int32_t comp, int32_t call, int32_t status, int64_t j) {
+    k->error.code = code;
+    k->error.component = comp;
+    k->error.call = call;
+    k->error.status = status;
+    k->error.point = j;
+    k->error.variable = -1;
+    k->error.value = 0.0;
+    return code;
+}
+
+/* -- FMI calls by version ----------------------------------------------------------------------- */
+
+static int set_real(const mk_component *c, const double *v) {
+    if (c->fmi == 3)
+        return ((fmi3_set_float64 *)c->set_real)(c->instance, c->in_vrs, (size_t)c->n_in, v, (size_t)c->n_in);
+    return ((fmi2_set_real *)c->set_real)(c->instance, c->in_vrs, (size_t)c->n_in, v);
+}
+
+static int get_real(const mk_component *c, double *v) {
+    if (c->fmi == 3)
+        return ((fmi3_get_float64 *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v, (size_t)c->n_out);
+    return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v);
+}
+
+/* doStep; *terminate is set when an FMI 3 FMU asks to end the simulation. */
+static int do_step(const mk_component *c, double t, bool *terminate) {
+    if (c->fmi == 3) {
+        bool event = false, early = false;
+        double last = t;
+        return ((fmi3_do_step *)c->do_step)(c->instance, t, c->h, true, &event, terminate, &early, &last);
+    }
+    return ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, 1);
+}
+
+static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
+    int status;
+    if (kind == MK_INTEGER) {
+        int32_t v = 0;
+        status = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, &vr, 1, &v, 1)
+                             : ((fmi2_get_integer *)c->get_integer)(c->instance, &vr, 1, &v);
+        *out = (double)v;
+    } else if (c->fmi == 3) {
+        bool v = false;
+        status = ((fmi3_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v, 1);
+        *out = v ? 1.0 : 0.0;
+    } else {
+        int32_t v = 0;
+        status = ((fmi2_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v);
+        *out = v ? 1.0 : 0.0;
+    }
+    return status;
+}
+
+/* -- inputs ---------------------------------------------------------------------------------- */
+
+/* np.interp(t, times, values) of one point, in numpy's arithmetic. */
+static double interp(const mk_stimulus *s, double t) {
+    const double *x = s->times, *y = s->values;
+    int32_t n = s->n;
+    if (isnan(t)) return t;
+    if (t < x[0]) return y[0];
+    if (t > x[n - 1]) return y[n - 1];
+    int32_t lo = 0, hi = n - 1; /* x[lo] <= t, last such index */
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo + 1) / 2;
+        if (x[mid] <= t) lo = mid;
+        else hi = mid - 1;
+    }
+    if (lo == n - 1 || x[lo] == t) return y[lo];
+    double slope = (y[lo + 1] - y[lo]) / (x[lo + 1] - x[lo]);
+    double v = slope * (t - x[lo]) + y[lo];
+    if (isnan(v)) {
+        v = slope * (t - x[lo + 1]) + y[lo + 1];
+        if (isnan(v) && y[lo] == y[lo + 1]) v = y[lo];
+    }
+    return v;
+}
+
+static double stimulus_value(const mk_stimulus *s, double t) {
+    if (s->kind == 1) return interp(s, t);
+    if (t < s->times[0]) return s->start_value;
+    int32_t lo = 0, hi = s->n - 1; /* last i with times[i] <= t */
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo + 1) / 2;
+        if (s->times[mid] <= t) lo = mid;
+        else hi = mid - 1;
+    }
+    return s->values[lo];
+}
+
+/* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
+ * then the stimuli. */
+static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
+    const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
+    for (int32_t l = 0; l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        const mk_component *src = &k->components[lk->source];
+        const double *hist = relaxed ? src->hist_previous : src->hist;
+        const int64_t cap = src->cap, n_out = src->n_out, base = n * lk->k_source;
+        int32_t t = relaxed ? lk->n_plain + 1 + (n < lk->n_relaxed ? (int32_t)n : lk->n_relaxed)
+                            : (n < lk->n_plain ? (int32_t)n : lk->n_plain);
+        const int64_t *off = lk->offsets + (size_t)t * lk->terms * kc;
+        const double *w = lk->weights + (size_t)t * nb * lk->terms * kc;
+        const uint8_t *zero = lk->zero + (size_t)t * nb * kc;
+        for (int32_t m = 0; m < kc; m++) {
+            for (int32_t b = 0; b < nb; b++) {
+                double *out = c->u + ((size_t)m * nb + b) * n_in + lk->slot0;
+                if (zero[b * kc + m]) {
+                    for (int32_t i = 0; i < lk->n_cols; i++) out[i] = 0.0;
+                    continue;
+                }
+                const double *wb = w + (size_t)b * lk->terms * kc;
+                for (int32_t i = 0; i < lk->n_cols; i++) {
+                    const int64_t col = lk->columns[i];
+                    double acc = wb[m] * hist[((base + off[m]) % cap) * n_out + col];
+                    for (int32_t q = 1; q < lk->terms; q++)
+                        acc += wb[q * kc + m] * hist[((base + off[q * kc + m]) % cap) * n_out + col];
+                    out[i] = b < c->n_values ? acc : acc / lk->scale[b];
+                }
+            }
+        }
+    }
+    if (c->n_stimuli) {
+        const int64_t j0 = n * kc;
+        for (int32_t m = 0; m < kc; m++)
+            for (int32_t b = 0; b < c->n_values; b++) {
+                double t = point_time(c, j0 + m + b);
+                double *row = c->u + ((size_t)m * nb + b) * n_in;
+                for (int32_t s = 0; s < c->n_stimuli; s++)
+                    row[c->stimuli[s].slot] = stimulus_value(&c->stimuli[s], t);
+            }
+    }
+}
+
+/* -- stepping -------------------------------------------------------------------------------- */
+
+/* MK_NOT_FINITE / MK_DIVERGED if sample j (in `row`) is not finite or beyond its bound. */
+static int32_t check_sample(mk_kernel *k, int32_t ci, const double *row, int64_t j) {
+    const mk_component *c = &k->components[ci];
+    for (int32_t o = 0; o < c->n_out; o++)
+        if (!isfinite(row[o])) {
+            fail(k, MK_NOT_FINITE, ci, -1, 0, j);
+            k->error.variable = o;
+            k->error.value = row[o];
+            return MK_NOT_FINITE;
+        }
+    for (int32_t o = 0; o < c->n_out; o++)
+        if (fabs(row[o]) > c->bound[o]) {
+            fail(k, MK_DIVERGED, ci, -1, 0, j);
+            k->error.variable = o;
+            k->error.value = row[o];
+            return MK_DIVERGED;
+        }
+    return MK_DONE;
+}
+
+/* Component ci through macro step n: `ratio` communication steps, outputs into its history. */
+static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
+    mk_component *c = &k->components[ci];
+    const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
+    fill_inputs(k, c, n, relaxed);
+    int64_t j = n * kc;
+    for (int32_t m = 0; m < kc; m++, j++) {
+        const double *u = c->u + (size_t)m * nb * n_in;
+        double t = point_time(c, j);
+        bool terminate = false;
+        int st;
+        int64_t t0 = now_ns();
+        if (n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
+        if (c->n_derivatives &&
+            (st = ((fmi2_set_derivatives *)c->set_derivatives)(c->instance, c->derivative_vrs,
+                                                                (size_t)c->n_derivatives, c->derivative_orders,
+                                                                u + (size_t)c->n_values * n_in)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
+        if ((st = do_step(c, t, &terminate)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
+        if (terminate) return fail(k, MK_TERMINATE, ci, MK_CALL_DO_STEP, st, j);
+        if (c->feedthrough && (st = set_real(c, u + n_in)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
+        double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
+        if (c->n_out && c->reads[m] && (st = get_real(c, row)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_REAL, st, j);
+        c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+        c->steps++;
+        if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
+    }
+    return MK_DONE;
+}
+
+/* Start-up macro step n: step it, then repeat it `startup_sweeps` times from the saved FMU states
+ * with relaxed windows on the previous sweep's samples (the whole system integrated together). */
+static int32_t startup_step(mk_kernel *k, int64_t n) {
+    int32_t code = MK_DONE, saved = 0;
+    for (; saved < k->n_components; saved++) {
+        mk_component *c = &k->components[saved];
+        int st = ((fmi_get_state *)c->get_state)(c->instance, &c->saved_state);
+        if (st > STATUS_OK) {
+            code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->ratio);
+            break;
+        }
+    }
+    for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) code = macro_step(k, i, n, false);
+    for (int32_t s = 0; code == MK_DONE && s < k->startup_sweeps; s++) {
+        for (int32_t i = 0; i < k->n_components; i++) {
+            mk_component *c = &k->components[i];
+            memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
+        }
+        for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
+            mk_component *c = &k->components[i];
+            int st = ((fmi_set_state *)c->set_state)(c->instance, c->saved_state);
+            if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
+            else code = macro_step(k, i, n, true);
+        }
+    }
+    for (int32_t i = 0; i < saved; i++) {
+        mk_component *c = &k->components[i];
+        int st = ((fmi_free_state *)c->free_state)(c->instance, &c->saved_state);
+        c->saved_state = NULL;
+        if (st > STATUS_OK && code == MK_DONE) code = fail(k, MK_FMI_ERROR, i, MK_CALL_FREE_STATE, st, n * c->ratio);
+    }
+    return code;
+}
+
+int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
+    mk_component *c = &k->components[ci];
+    double *u = c->u; /* step 0's value block as scratch: macro step 0 fills it anew */
+    for (int32_t l = 0; l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        const mk_component *src = &k->components[lk->source];
+        for (int32_t i = 0; i < lk->n_cols; i++) u[lk->slot0 + i] = src->hist[lk->columns[i]];
+    }
+    for (int32_t s = 0; s < c->n_stimuli; s++)
+        u[c->stimuli[s].slot] = stimulus_value(&c->stimuli[s], point_time(c, 0));
+    int st;
+    int64_t t0 = now_ns();
+    if (c->n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, 0);
+    if (c->n_out && (st = get_real(c, c->hist)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_REAL, st, 0);
+    c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    return MK_DONE;
+}
+
+int32_t mk_record_row(mk_kernel *k, int64_t n) {
+    double *row = k->rows + (size_t)k->row_count * (size_t)k->n_columns;
+    row[0] = (double)(k->macro_num0 + (n + 1) * k->macro_dnum) / (double)k->macro_den;
+    for (int32_t r = 0; r < k->n_records; r++) {
+        const mk_record *rec = &k->records[r];
+        mk_component *c = &k->components[rec->component];
+        if (rec->kind == MK_REAL_SAMPLE) {
+            row[rec->column] = c->hist[(((n + 1) * c->ratio) % c->cap) * c->n_out + rec->index];
+            continue;
+        }
+        int64_t t0 = now_ns();
+        int st = get_scalar(c, rec->kind, rec->index, &row[rec->column]);
+        c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+        if (st > STATUS_OK) {
+            fail(k, MK_FMI_ERROR, rec->component, rec->kind == MK_INTEGER ? MK_CALL_GET_INTEGER : MK_CALL_GET_BOOLEAN,
+                 st, (n + 1) * c->ratio);
+            k->error.variable = r;
+            return MK_FMI_ERROR;
+        }
+    }
+    k->row_count++;
+    return MK_DONE;
+}
+
+/* -- real-time pacing -------------------------------------------------------------------------- */
+
+void mk_pace_start(mk_kernel *k, int64_t n_origin) {
+    k->pacing.origin_ns = now_ns();
+    k->pacing.n_origin = n_origin;
+}
+
+#define SPIN_NS 50000 /* sleep until this long before a frame is due, then spin: wake-up jitter */
+
+/* After macro step n: wait until macro step n + 1 is due (absolute clock), or count an overrun. */
+static void pace(mk_kernel *k, int64_t n) {
+    mk_pacing *p = &k->pacing;
+    int64_t due = p->origin_ns + (int64_t)llround((double)(n + 1 - p->n_origin) * p->frame * 1e9);
+    int64_t now = now_ns(), late;
+    if (now > due) {
+        p->overruns++;
+        late = now - due;
+    } else {
+        if (due - now > SPIN_NS) {
+            int64_t wake = due - SPIN_NS;
+            struct timespec ts = {(time_t)(wake / 1000000000), (long)(wake % 1000000000)};
+            while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) != 0) {
+            }
+        }
+        int64_t t;
+        while ((t = now_ns()) < due) {
+        }
+        p->idle_ns += t - now;
+        late = t - due;
+    }
+    p->frames++;
+    if (late > p->worst_ns) p->worst_ns = late;
+    int64_t bin = late / 1000;
+    p->histogram[bin < MK_LATE_BINS ? bin : MK_LATE_BINS]++;
+}
+
+/* -- the macro-step loop ----------------------------------------------------------------------- */
+
+int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next) {
+    const int64_t t_end = budget_s > 0 ? now_ns() + (int64_t)(budget_s * 1e9) : INT64_MAX;
+    int32_t code = MK_DONE;
+    int64_t n = n_from;
+    for (; n < n_to; n++) {
+        bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
+        if (due && k->row_count >= k->row_capacity) {
+            code = MK_ROWS_FULL;
+            break;
+        }
+        if (n < k->startup_steps) code = startup_step(k, n);
+        else
+            for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) code = macro_step(k, i, n, false);
+        if (code == MK_DONE && due) code = mk_record_row(k, n);
+        if (code != MK_DONE) break;
+        if (k->pacing.factor > 0) pace(k, n);
+        if (now_ns() >= t_end && n + 1 < n_to) {
+            n++;
+            code = MK_YIELD;
+            break;
+        }
+    }
+    *n_next = n;
+    return code;
+}

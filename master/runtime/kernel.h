@@ -1,0 +1,176 @@
+/* The stepping kernel: the macro-step loop of a compiled plan, with no Python on the per-step path.
+ *
+ * Python compiles a Plan once into the flat tables below (master/runtime/tables.py mirrors them
+ * with ctypes; mk_layout() lets it check that both agree). mk_run() then steps many macro steps
+ * per call and returns only when the results buffer is full, a wall-time budget is spent, the
+ * requested macro step is reached, or on an error (mk_error says which component, when, why).
+ *
+ * The arithmetic is the documented one of master/coupling.py (Lagrange weights computed exactly
+ * in Python, terms summed in order w0 y0 + w1 y1 + ...), so results are bit for bit those of the
+ * Python formulation. Build with -ffp-contract=off: a fused multiply-add would change them.
+ * Times are in seconds.
+ */
+#ifndef MASTER_KERNEL_H
+#define MASTER_KERNEL_H
+
+#include <stdint.h>
+
+/* Value kinds of a recorded column (room for Integer and Boolean coupling: see mk_record). */
+enum { MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2 };
+
+/* What mk_run returned. */
+enum {
+    MK_DONE = 0,       /* reached n_to */
+    MK_ROWS_FULL = 1,  /* the results buffer is full: drain it, then call again */
+    MK_YIELD = 2,      /* the wall-time budget is spent (Python checks for signals, shows progress) */
+    MK_FMI_ERROR = 3,  /* an FMI call returned fmi2Error / fmi2Fatal (or worse) */
+    MK_NOT_FINITE = 4, /* an output read is NaN or Inf */
+    MK_DIVERGED = 5,   /* an output grew beyond its bound */
+    MK_TERMINATE = 6,  /* an FMI 3 FMU asked to terminate */
+};
+
+/* Which FMI call failed (mk_error.call). */
+enum {
+    MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
+    MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
+};
+
+/* One link into a consumer: `n_cols` outputs of `source` drive inputs slot0.. of the consumer.
+ *
+ * Tables hold, per macro step kind, the sample offsets and weights of every consumer step m:
+ * table n (n < n_plain) for plain macro step n, table n_plain for every later plain one, then
+ * table n_plain + 1 + n (n < n_relaxed) for the relaxed start-up sweep of macro step n and
+ * n_plain + 1 + n_relaxed for later relaxed ones. Sample j of the source is row j % cap of its
+ * history; step m of macro step n uses samples n k_source + offsets[t][i][m], i < terms.
+ */
+typedef struct {
+    int32_t source;
+    int32_t k_source;
+    int32_t n_cols;
+    int32_t slot0;
+    const int32_t *columns; /* source history column of each driven input */
+    int32_t terms;          /* polynomial order + 1 */
+    int32_t n_plain;
+    int32_t n_relaxed;
+    const int64_t *offsets; /* [table][term][m] */
+    const double *weights;  /* [table][block][term][m] */
+    const uint8_t *zero;    /* [table][block][m]: exactly 0.0 whatever the samples */
+    const double *scale;    /* [block]: source step ** derivative order (1 for value blocks) */
+} mk_link;
+
+/* A step or table signal on an input slot of its component (see master/coupling.py). */
+typedef struct {
+    int32_t slot;
+    int32_t kind; /* 0: step (values[i] from times[i] on), 1: table (piecewise linear) */
+    int32_t n;
+    const double *times;
+    const double *values;
+    double start_value; /* a step stimulus before times[0] */
+} mk_stimulus;
+
+/* An FMI function of any signature (cast to its own type before the call). */
+typedef void (*mk_function)(void);
+
+/* One FMU instance and its place in the plan. Pointers stay owned by Python. */
+typedef struct {
+    /* FMI: version 2 or 3, the instance and the functions the loop calls */
+    int32_t fmi;
+    void *instance;
+    mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean;
+    mk_function get_state, set_state, free_state;
+    /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
+    int64_t num0, dnum, den;
+    double h;
+    int32_t ratio;
+    /* inputs: u[m][block][i], blocks = n_values values (step start, step end) then derivatives */
+    int32_t n_in;
+    const uint32_t *in_vrs;
+    int32_t n_blocks;
+    int32_t n_values;
+    int32_t feedthrough; /* set the step-end inputs after doStep (outputs depend on inputs) */
+    int32_t n_derivatives;            /* entries of the derivative call: n_in * (n_blocks - n_values) */
+    const uint32_t *derivative_vrs;   /* [n_derivatives] */
+    const int32_t *derivative_orders; /* [n_derivatives] */
+    double *u;
+    int32_t n_links;
+    const mk_link *links;
+    int32_t n_stimuli;
+    const mk_stimulus *stimuli;
+    /* outputs: history ring [cap][n_out]; read after step m only where reads[m] */
+    int32_t n_out;
+    const uint32_t *out_vrs;
+    double *hist;
+    double *hist_previous; /* start-up: the previous sweep's samples, [cap][n_out] */
+    int32_t cap;
+    const uint8_t *reads;
+    const double *bound; /* |output| beyond this has diverged */
+    /* written by the kernel */
+    void *saved_state;
+    int64_t steps;
+    double fmu_time;
+} mk_component;
+
+/* One recorded column: a sample from a history, or an Integer / Boolean read from the FMU. */
+typedef struct {
+    int32_t column; /* in the row (0 is time) */
+    int32_t component;
+    int32_t kind;   /* MK_REAL_SAMPLE: history column `index`; MK_INTEGER / MK_BOOLEAN: value reference */
+    uint32_t index;
+} mk_record;
+
+typedef struct {
+    int32_t code;
+    int32_t component;
+    int32_t call;
+    int32_t status;
+    int64_t point;    /* communication point j at the start of the failing step */
+    int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED) or record index */
+    double value;
+} mk_error;
+
+/* Per-frame lateness of real-time pacing: a histogram in microseconds and the extremes. */
+#define MK_LATE_BINS 10000
+typedef struct {
+    double factor;    /* simulated seconds per wall second; 0: unpaced */
+    double frame;     /* wall seconds per macro step (macro step / factor) */
+    int64_t origin_ns; /* CLOCK_MONOTONIC of macro step 0's start */
+    int64_t n_origin; /* macro step at origin_ns */
+    int64_t frames;
+    int64_t overruns;
+    int64_t worst_ns;
+    int64_t idle_ns;
+    int64_t histogram[MK_LATE_BINS + 1]; /* [us], last bin: MK_LATE_BINS us and more */
+} mk_pacing;
+
+typedef struct {
+    int32_t n_components;
+    mk_component *components; /* in stepping order */
+    int64_t n_macro;
+    int64_t startup_steps;
+    int32_t startup_sweeps;
+    int64_t record_every;
+    int64_t macro_num0, macro_dnum, macro_den; /* macro step n starts at (num0 + n dnum) / den */
+    int32_t n_columns;
+    int32_t n_records;
+    const mk_record *records;
+    double *rows; /* [row_capacity][n_columns] */
+    int64_t row_capacity;
+    int64_t row_count; /* rows waiting in `rows` (Python drains them and sets this to 0) */
+    mk_pacing pacing;
+    mk_error error;
+} mk_kernel;
+
+/* Sizes of the structures, for the ctypes mirror to check itself against. */
+void mk_layout(int64_t *sizes);
+/* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
+ * outputs into sample 0. Returns an mk code. */
+int32_t mk_initial_sweep(mk_kernel *k, int32_t c);
+/* Record the row after macro step n (n = -1: the start time) into k->rows. */
+int32_t mk_record_row(mk_kernel *k, int64_t n);
+/* Step macro steps n_from .. n_to - 1 (fewer on a return other than MK_DONE); *n_next: the first
+ * macro step not done. budget_s > 0: return MK_YIELD once that much wall time has passed. */
+int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next);
+/* Start real-time pacing: macro step n is due origin + (n - n_origin) frame from now. */
+void mk_pace_start(mk_kernel *k, int64_t n_origin);
+
+#endif

@@ -1,0 +1,228 @@
+"""The compiled stepping kernel (kernel.c) and its ctypes mirror of kernel.h.
+
+`pip install` builds kernel.c into `_kernel*.so` beside this file (setup.py). In a development
+checkout a kernel.c or kernel.h newer than the built library is rebuilt here with the system C compiler, so
+an edit never runs stale code. `library()` checks that the structure sizes agree with C.
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import importlib.machinery
+import os
+import shutil
+import subprocess
+import tempfile
+from functools import cache
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SOURCE = HERE / "kernel.c"
+HEADER = HERE / "kernel.h"
+CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
+
+# mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, TERMINATE = range(7)
+CALLS = (
+    "set_real",
+    "set_input_derivatives",
+    "do_step",
+    "get_real",
+    "get_state",
+    "set_state",
+    "free_state",
+    "get_integer",
+    "get_boolean",
+)
+REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
+LATE_BINS = 10000
+
+_p = C.c_void_p
+_i32, _i64, _u32, _f64 = C.c_int32, C.c_int64, C.c_uint32, C.c_double
+
+
+class Link(C.Structure):
+    _fields_ = [
+        ("source", _i32),
+        ("k_source", _i32),
+        ("n_cols", _i32),
+        ("slot0", _i32),
+        ("columns", C.POINTER(_i32)),
+        ("terms", _i32),
+        ("n_plain", _i32),
+        ("n_relaxed", _i32),
+        ("offsets", C.POINTER(_i64)),
+        ("weights", C.POINTER(_f64)),
+        ("zero", C.POINTER(C.c_uint8)),
+        ("scale", C.POINTER(_f64)),
+    ]
+
+
+class Stimulus(C.Structure):
+    _fields_ = [
+        ("slot", _i32),
+        ("kind", _i32),
+        ("n", _i32),
+        ("times", C.POINTER(_f64)),
+        ("values", C.POINTER(_f64)),
+        ("start_value", _f64),
+    ]
+
+
+class Component(C.Structure):
+    _fields_ = [
+        ("fmi", _i32),
+        ("instance", _p),
+        ("do_step", _p),
+        ("set_real", _p),
+        ("get_real", _p),
+        ("set_derivatives", _p),
+        ("get_integer", _p),
+        ("get_boolean", _p),
+        ("get_state", _p),
+        ("set_state", _p),
+        ("free_state", _p),
+        ("num0", _i64),
+        ("dnum", _i64),
+        ("den", _i64),
+        ("h", _f64),
+        ("ratio", _i32),
+        ("n_in", _i32),
+        ("in_vrs", C.POINTER(_u32)),
+        ("n_blocks", _i32),
+        ("n_values", _i32),
+        ("feedthrough", _i32),
+        ("n_derivatives", _i32),
+        ("derivative_vrs", C.POINTER(_u32)),
+        ("derivative_orders", C.POINTER(_i32)),
+        ("u", C.POINTER(_f64)),
+        ("n_links", _i32),
+        ("links", C.POINTER(Link)),
+        ("n_stimuli", _i32),
+        ("stimuli", C.POINTER(Stimulus)),
+        ("n_out", _i32),
+        ("out_vrs", C.POINTER(_u32)),
+        ("hist", C.POINTER(_f64)),
+        ("hist_previous", C.POINTER(_f64)),
+        ("cap", _i32),
+        ("reads", C.POINTER(C.c_uint8)),
+        ("bound", C.POINTER(_f64)),
+        ("saved_state", _p),
+        ("steps", _i64),
+        ("fmu_time", _f64),
+    ]
+
+
+class Record(C.Structure):
+    _fields_ = [("column", _i32), ("component", _i32), ("kind", _i32), ("index", _u32)]
+
+
+class Error(C.Structure):
+    _fields_ = [
+        ("code", _i32),
+        ("component", _i32),
+        ("call", _i32),
+        ("status", _i32),
+        ("point", _i64),
+        ("variable", _i32),
+        ("value", _f64),
+    ]
+
+
+class Pacing(C.Structure):
+    _fields_ = [
+        ("factor", _f64),
+        ("frame", _f64),
+        ("origin_ns", _i64),
+        ("n_origin", _i64),
+        ("frames", _i64),
+        ("overruns", _i64),
+        ("worst_ns", _i64),
+        ("idle_ns", _i64),
+        ("histogram", _i64 * (LATE_BINS + 1)),
+    ]
+
+
+class Kernel(C.Structure):
+    _fields_ = [
+        ("n_components", _i32),
+        ("components", C.POINTER(Component)),
+        ("n_macro", _i64),
+        ("startup_steps", _i64),
+        ("startup_sweeps", _i32),
+        ("record_every", _i64),
+        ("macro_num0", _i64),
+        ("macro_dnum", _i64),
+        ("macro_den", _i64),
+        ("n_columns", _i32),
+        ("n_records", _i32),
+        ("records", C.POINTER(Record)),
+        ("rows", C.POINTER(_f64)),
+        ("row_capacity", _i64),
+        ("row_count", _i64),
+        ("pacing", Pacing),
+        ("error", Error),
+    ]
+
+
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel)
+
+
+class KernelBuildError(RuntimeError):
+    """The kernel library is missing and cannot be built here."""
+
+
+def _built() -> Path | None:
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        p = HERE / f"_kernel{suffix}"
+        if p.exists():
+            return p
+    return None
+
+
+def _compile() -> Path:
+    """Build kernel.c into this package (a development checkout whose library is stale or missing)."""
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        raise KernelBuildError(f"{SOURCE.name} is not built and no C compiler (cc, gcc) is on PATH")
+    target = HERE / f"_kernel{importlib.machinery.EXTENSION_SUFFIXES[0]}"
+    fd, tmp = tempfile.mkstemp(dir=HERE, prefix="._kernel", suffix=".so")
+    os.close(fd)
+    try:
+        run = subprocess.run(
+            [cc, *CFLAGS, "-shared", str(SOURCE), "-o", tmp, "-lm"], capture_output=True, text=True
+        )
+        if run.returncode:
+            raise KernelBuildError(f"building {SOURCE.name} failed:\n{run.stderr.strip()}")
+        os.chmod(tmp, 0o755)
+        os.replace(tmp, target)  # atomic: a concurrent loader sees the old or the new library
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return target
+
+
+@cache
+def library() -> C.CDLL:
+    """The kernel library with typed functions, built first where needed."""
+    path = _built()
+    sources = [p.stat().st_mtime for p in (SOURCE, HEADER) if p.exists()]
+    if path is None or (sources and max(sources) > path.stat().st_mtime):
+        path = _compile()
+    lib = C.CDLL(str(path))
+    sizes = (_i64 * len(STRUCTS))()
+    lib.mk_layout(sizes)
+    for struct, size in zip(STRUCTS, sizes, strict=True):
+        if C.sizeof(struct) != size:
+            raise KernelBuildError(
+                f"{path.name}: {struct.__name__} is {size} bytes in C, {C.sizeof(struct)} here"
+            )
+    kp = C.POINTER(Kernel)
+    lib.mk_initial_sweep.argtypes = [kp, _i32]
+    lib.mk_record_row.argtypes = [kp, _i64]
+    lib.mk_run.argtypes = [kp, _i64, _i64, _f64, C.POINTER(_i64)]
+    lib.mk_pace_start.argtypes = [kp, _i64]
+    lib.mk_pace_start.restype = None
+    for f in (lib.mk_initial_sweep, lib.mk_record_row, lib.mk_run):
+        f.restype = _i32
+    return lib

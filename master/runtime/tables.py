@@ -1,0 +1,360 @@
+"""A Plan compiled into the kernel's flat tables for a set of opened FMUs.
+
+`CompiledPlan` builds every array the kernel reads (value references, polynomial weights and
+sample offsets per link and macro-step kind, clocks, stimulus tables, recorded columns), points
+the ctypes mirror of kernel.h at them and keeps them alive. It turns the kernel's error record
+into a `SimulationError` naming the component, the simulation time and the cause.
+Times are in seconds.
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import math
+
+import numpy as np
+
+from master.backends.component import (
+    GROWTH_LIMIT,
+    UNSTABLE_HINT,
+    SimulationError,
+    history_capacity,
+    output_names,
+    samples_read,
+)
+from master.coupling import weights
+from master.fmu import Fmu, FmuError
+from master.runtime import native
+from master.schedule import Link, Plan, PlanComponent
+
+EXACT = 2**53  # clock integers beyond this would not convert to float exactly
+
+FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used with that version
+    "do_step": ("fmi2DoStep", "fmi3DoStep"),
+    "set_real": ("fmi2SetReal", "fmi3SetFloat64"),
+    "get_real": ("fmi2GetReal", "fmi3GetFloat64"),
+    "set_derivatives": ("fmi2SetRealInputDerivatives", None),
+    "get_integer": ("fmi2GetInteger", "fmi3GetInt32"),
+    "get_boolean": ("fmi2GetBoolean", "fmi3GetBoolean"),
+    "get_state": ("fmi2GetFMUstate", "fmi3GetFMUState"),
+    "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
+    "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
+}
+
+
+def _ptr(a: np.ndarray, ctype):
+    return a.ctypes.data_as(C.POINTER(ctype))
+
+
+def link_tables(
+    lk: Link, blocks: list[tuple[int, int]]
+) -> tuple[int, int, np.ndarray, np.ndarray, np.ndarray]:
+    """(n_plain, n_relaxed, offsets, weights, zero) of a link as kernel.h lays them out.
+
+    blocks: (step offset of the evaluation point, derivative order) of each block of the consumer's
+    inputs. Step m of macro step n uses source samples j_end - i, i = 0..order, with
+    (j_end, p) = `Link.window`; terms beyond p (start-up) get weight 0 on sample j_end, derivatives
+    beyond p are exactly 0. From macro step n_plain (n_relaxed for relaxed sweeps) on, every macro
+    step has the same table relative to n k_source.
+    """
+    ks, kc, terms = lk.k_source, lk.k_consumer, lk.order + 1
+
+    def full(n: int, relaxed: bool) -> bool:
+        return all(lk.window(n, n * kc + m, relaxed)[1] == lk.order for m in range(kc))
+
+    def table(n: int, relaxed: bool):
+        offsets = np.zeros((terms, kc), dtype=np.int64)
+        w = np.zeros((len(blocks), terms, kc))
+        zero = np.zeros((len(blocks), kc), dtype=np.uint8)
+        for m in range(kc):
+            j = n * kc + m
+            j_end, p = lk.window(n, j, relaxed)
+            offsets[:, m] = j_end - n * ks - np.minimum(np.arange(terms), p)
+            for b, (shift, d) in enumerate(blocks):
+                if d <= p:
+                    w[b, : p + 1, m] = weights(p, (j + shift) * ks - j_end * kc, kc, d)
+                zero[b, m] = d > p
+        return offsets, w, zero
+
+    n_plain = next(n for n in range(lk.order + 2) if full(n, False))
+    n_relaxed = next(n for n in range(lk.order + 2) if full(n, True))
+    tabs = [table(n, False) for n in range(n_plain + 1)] + [table(n, True) for n in range(n_relaxed + 1)]
+    return (
+        n_plain,
+        n_relaxed,
+        np.ascontiguousarray([t[0] for t in tabs]),
+        np.ascontiguousarray([t[1] for t in tabs]),
+        np.ascontiguousarray([t[2] for t in tabs]),
+    )
+
+
+def _function(fmu: Fmu, slot: str) -> int | None:
+    name = FMI_FUNCTIONS[slot][1 if fmu.fmi3 else 0]
+    if name is None:
+        return None
+    try:
+        return C.cast(fmu.slave.dll[name], C.c_void_p).value
+    except AttributeError:  # not exported: the kernel never calls it unless the plan needs it
+        return None
+
+
+class CompiledPlan:
+    """The kernel tables of `plan` for `fmus` (opened, in initialisation mode), by component name.
+
+    row_capacity: rows the results buffer holds before `run` returns to have them drained.
+    """
+
+    def __init__(self, plan: Plan, fmus: dict[str, Fmu], row_capacity: int = 4096):
+        self.plan = plan
+        self.lib = native.library()
+        self.names = [pc.name for pc in plan.components]
+        self.fmus = [fmus[n] for n in self.names]
+        self._keep: list[object] = []  # every array and structure the kernel points into
+        self.outs = {n: output_names(plan, n, fmus[n].variables) for n in self.names}
+        self.hist: dict[str, np.ndarray] = {}
+        self.bound: dict[str, np.ndarray] = {}
+        comps = (native.Component * len(self.names))()
+        for i, pc in enumerate(plan.components):
+            comps[i] = self._component(pc, fmus[pc.name])
+        self.components = comps
+        k = native.Kernel()
+        k.n_components = len(comps)
+        k.components = comps
+        k.n_macro = plan.n_macro
+        k.startup_steps = plan.startup_steps
+        k.startup_sweeps = plan.startup_sweeps
+        k.record_every = plan.record_every
+        mc = plan.macro_clock
+        self._check_clock("the macro clock", mc.num0, mc.dnum, mc.den, plan.n_macro)
+        k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
+        records = (native.Record * max(len(plan.record), 1))()
+        for i, (comp, var) in enumerate(plan.record):
+            records[i] = self._record(1 + i, comp, var)
+        k.n_records = len(plan.record)
+        k.records = records
+        k.n_columns = 1 + len(plan.record)
+        self.rows = np.zeros((row_capacity, k.n_columns))
+        k.rows = _ptr(self.rows, C.c_double)
+        k.row_capacity = row_capacity
+        self._keep += [records, self.rows]
+        self.kernel = k
+        self.ref = C.byref(k)
+        self.position = 0  # the next macro step (after a failure: the one that failed)
+
+    # -- building -------------------------------------------------------------------------------
+    def _array(self, values, dtype) -> np.ndarray:
+        a = np.ascontiguousarray(values, dtype=dtype)
+        if a.size == 0:
+            a = np.zeros(1, dtype=dtype)  # a valid pointer the kernel never reads
+        self._keep.append(a)
+        return a
+
+    def _check_clock(self, what: str, num0: int, dnum: int, den: int, n_macro: int, ratio: int = 1) -> None:
+        last = abs(num0) + n_macro * ratio * abs(dnum)
+        if last >= EXACT or den >= EXACT:
+            raise SimulationError(
+                f"{self.plan.scenario.path}: {what} needs integers beyond 2^53 "
+                f"(times {num0}/{den} + j {dnum}/{den}); choose times with smaller denominators",
+                "",
+                float(self.plan.scenario.start_time),
+            )
+
+    def _component(self, pc: PlanComponent, fmu: Fmu) -> native.Component:
+        plan = self.plan
+        c = native.Component()
+        c.fmi = 3 if fmu.fmi3 else 2
+        c.instance = fmu.slave.component
+        for slot in FMI_FUNCTIONS:
+            setattr(c, slot, _function(fmu, slot))
+        for slot in ("do_step", "set_real", "get_real"):
+            if getattr(c, slot) is None:
+                raise FmuError(f"{pc.name}: {fmu.path.name} does not export {FMI_FUNCTIONS[slot][c.fmi - 2]}")
+        self._check_clock(
+            f"component {pc.name}", pc.clock.num0, pc.clock.dnum, pc.clock.den, plan.n_macro, pc.ratio
+        )
+        c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
+        c.h = float(pc.step)
+        c.ratio = k = pc.ratio
+
+        links = plan.links_into(pc.name)
+        stimuli = [s for s in plan.stimuli if s.component == pc.name]
+        in_names = [i for lk in links for i in lk.inputs] + [s.variable for s in stimuli]
+        in_vrs = [fmu.variables[n].vr for n in in_names]
+        out = self.outs[pc.name]
+        c.feedthrough = int(bool(in_names) and any(o in fmu.feedthrough for o in out))
+        nv = 2 if c.feedthrough else 1
+        blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
+        c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
+        c.in_vrs = _ptr(self._array(in_vrs, np.uint32), C.c_uint32)
+        n_deriv_blocks = len(blocks) - nv
+        if n_deriv_blocks and c.set_derivatives is None:
+            raise FmuError(f"{pc.name}: inputs as polynomials need fmi2SetRealInputDerivatives")
+        c.n_derivatives = n_deriv_blocks * len(in_names)
+        c.derivative_vrs = _ptr(self._array(in_vrs * n_deriv_blocks, np.uint32), C.c_uint32)
+        orders = [d for _, d in blocks[nv:] for _ in in_names]
+        c.derivative_orders = _ptr(self._array(orders, np.int32), C.c_int32)
+        c.u = _ptr(self._array(np.zeros((k, len(blocks), len(in_names))), np.float64), C.c_double)
+
+        c_links = (native.Link * max(len(links), 1))()
+        slot = 0
+        for i, lk in enumerate(links):
+            src_out = self.outs[lk.source]
+            n_plain, n_relaxed, offsets, w, zero = link_tables(lk, blocks)
+            step_s = float(plan.component(lk.source).step)
+            scale = [step_s**d for _, d in blocks]
+            c_links[i] = native.Link(
+                source=self.names.index(lk.source),
+                k_source=lk.k_source,
+                n_cols=len(lk.inputs),
+                slot0=slot,
+                columns=_ptr(self._array([src_out.index(o) for o in lk.outputs], np.int32), C.c_int32),
+                terms=lk.order + 1,
+                n_plain=n_plain,
+                n_relaxed=n_relaxed,
+                offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
+                weights=_ptr(self._array(w, np.float64), C.c_double),
+                zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
+                scale=_ptr(self._array(scale, np.float64), C.c_double),
+            )
+            slot += len(lk.inputs)
+        c.n_links, c.links = len(links), c_links
+        c_stim = (native.Stimulus * max(len(stimuli), 1))()
+        for i, s in enumerate(stimuli):
+            start = fmu.variables[s.variable].start
+            c_stim[i] = native.Stimulus(
+                slot=slot + i,
+                kind=0 if s.kind == "step" else 1,
+                n=len(s.times),
+                times=_ptr(self._array([float(t) for t in s.times], np.float64), C.c_double),
+                values=_ptr(self._array([float(v) for v in s.values], np.float64), C.c_double),
+                start_value=float(start) if start is not None else 0.0,
+            )
+        c.n_stimuli, c.stimuli = len(stimuli), c_stim
+        self._keep += [c_links, c_stim]
+
+        cap = history_capacity(plan, pc.name)
+        c.n_out = len(out)
+        c.out_vrs = _ptr(self._array([fmu.variables[o].vr for o in out], np.uint32), C.c_uint32)
+        self.hist[pc.name] = hist = self._array(np.zeros((cap, len(out))), np.float64)
+        c.hist = _ptr(hist, C.c_double)
+        c.hist_previous = _ptr(self._array(np.zeros((cap, len(out))), np.float64), C.c_double)
+        c.cap = cap
+        c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
+        self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
+        c.bound = _ptr(bound, C.c_double)
+        return c
+
+    def _record(self, column: int, comp: str, var: str) -> native.Record:
+        i = self.names.index(comp)
+        if var in self.outs[comp]:
+            return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var))
+        v = self.fmus[i].variables[var]
+        kind = native.BOOLEAN if v.type == "Boolean" else native.INTEGER
+        return native.Record(column, i, kind, v.vr)
+
+    # -- running --------------------------------------------------------------------------------
+    def initial_sweep(self, i: int) -> None:
+        """Component i in initialisation mode: inputs from the sources' sample 0, outputs to its own."""
+        if self.lib.mk_initial_sweep(self.ref, i) != native.DONE:
+            raise self.error(initial=True)
+
+    def exit_initialization(self, name: str, fmu: Fmu) -> None:
+        """Leave initialisation mode; a failure is named with the component and the start time."""
+        try:
+            fmu.exit_initialization()
+        except FmuError as e:
+            t = float(self.plan.scenario.start_time)
+            raise SimulationError(f"{e} at t={t}", name, t) from e
+
+    def pace(self, factor: float) -> None:
+        """Pace the macro steps from the next one on: simulated time runs `factor` times the wall clock."""
+        if not factor > 0:
+            raise ValueError(f"real-time factor must be positive, got {factor}")
+        p = self.kernel.pacing
+        p.factor = factor
+        p.frame = float(self.plan.scenario.macro_step) / factor
+        self.lib.mk_pace_start(self.ref, 0)
+
+    def pacing_stats(self) -> dict[str, float] | None:
+        """Real-time lateness (s) of the paced frames: p50, p99, p99.9 (upper bin edges, 1 us bins),
+        worst; frames, overruns (frames whose work ended after they were due), idle (s spent waiting)."""
+        p = self.kernel.pacing
+        if not p.factor > 0:
+            return None
+        hist = np.frombuffer(p.histogram, dtype=np.int64)
+        cum = np.cumsum(hist)
+
+        def quantile(q: float) -> float:
+            if not p.frames:
+                return 0.0
+            return min(float(np.searchsorted(cum, q * p.frames) + 1) * 1e-6, p.worst_ns * 1e-9)
+
+        return {
+            "frames": int(p.frames),
+            "overruns": int(p.overruns),
+            "p50": quantile(0.5),
+            "p99": quantile(0.99),
+            "p99.9": quantile(0.999),
+            "worst": p.worst_ns * 1e-9,
+            "idle": p.idle_ns * 1e-9,
+        }
+
+    def set_bounds(self) -> None:
+        """Divergence bounds from the samples at the start time (after initialisation)."""
+        for name, hist in self.hist.items():
+            self.bound[name][:] = GROWTH_LIMIT * np.maximum(1.0, np.abs(hist[0]))
+
+    def record_row(self, n: int) -> None:
+        """The row after macro step n (n = -1: the start time) into the results buffer."""
+        if self.lib.mk_record_row(self.ref, n) != native.DONE:
+            raise self.error()
+
+    def run(self, n_from: int, n_to: int, budget: float = 0.0) -> tuple[int, int]:
+        """(code, next macro step): step n_from .. n_to - 1 (see kernel.h mk_run); raise on failure."""
+        n_next = C.c_int64(n_from)
+        code = self.lib.mk_run(self.ref, n_from, n_to, budget, C.byref(n_next))
+        self.position = n_next.value
+        if code > native.YIELD:
+            raise self.error()
+        return code, n_next.value
+
+    def take_rows(self) -> np.ndarray:
+        """The rows waiting in the results buffer (a view valid until the next run); empties it."""
+        n = self.kernel.row_count
+        self.kernel.row_count = 0
+        return self.rows[:n]
+
+    def stats(self) -> tuple[dict[str, int], dict[str, float]]:
+        """(communication steps, wall time inside FMI calls in s) per component."""
+        comps = self.components
+        return (
+            {n: int(comps[i].steps) for i, n in enumerate(self.names)},
+            {n: float(comps[i].fmu_time) for i, n in enumerate(self.names)},
+        )
+
+    # -- errors ---------------------------------------------------------------------------------
+    def error(self, initial: bool = False) -> SimulationError:
+        """The kernel's last error as a SimulationError (component, simulation time, cause);
+        initial: it happened in an initial sweep, at the start time."""
+        e = self.kernel.error
+        name, fmu, pc = self.names[e.component], self.fmus[e.component], self.plan.components[e.component]
+        t, t1 = pc.clock.time(e.point), pc.clock.time(e.point + 1)
+        if e.code in (native.NOT_FINITE, native.DIVERGED):
+            bad = self.outs[name][e.variable]
+            beyond = (
+                f": {e.value:.3g} is beyond {GROWTH_LIMIT:g} times its start magnitude"
+                if e.code == native.DIVERGED
+                else ""
+            )
+            return SimulationError(f"unstable: {name}.{bad} at t={t}{beyond} ({UNSTABLE_HINT})", name, t, bad)
+        step = f"in the step from t={t} to t={t1}"
+        if e.code == native.TERMINATE:
+            return SimulationError(f"{fmu.describe(f'asked to terminate at t={t1}')} {step}", name, t)
+        call = native.CALLS[e.call]
+        cause = fmu.call_error(call, e.status)
+        if call in ("get_integer", "get_boolean"):
+            _, var = self.plan.record[e.variable]
+            return SimulationError(f"{cause}: reading {var}", name, math.nan, var)
+        if call in ("get_state", "set_state", "free_state") or initial:
+            return SimulationError(f"{cause} at t={t}", name, t)
+        return SimulationError(f"{cause} {step}", name, t)

@@ -1,0 +1,109 @@
+"""The compiled stepping kernel (master/runtime/kernel.c): clean C, numpy's arithmetic, paced frames.
+
+Serial (the kernel) against the parallel backend's Python stepping, bit for bit, is in
+tests/test_parallel.py; here the kernel's own pieces are checked against their definitions.
+"""
+
+import shutil
+import subprocess
+import sys
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import master.api as api
+from master.runtime import native
+from master.scenario.model import Component, Scenario, Stimulus
+
+ECHO = '''
+from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+
+
+class Echo(Fmi2Slave):
+    """y after a step is the input u set before it: the master's input values made visible."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 0.0
+        self.y = 0.0
+        self.register_variable(Real("u", causality=Fmi2Causality.input))
+        self.register_variable(Real("y", causality=Fmi2Causality.output))
+
+    def do_step(self, current_time, step_size):
+        self.y = self.u
+        return True
+'''
+
+
+@pytest.fixture(scope="module")
+def echo(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("echo")
+    (d / "Echo.py").write_text(ECHO)
+    cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(d / "Echo.py"), "-d", str(d)]
+    subprocess.run(cmd, check=True, capture_output=True)
+    return d / "Echo.fmu"
+
+
+def test_kernel_compiles_warnings_clean(tmp_path):
+    cc = shutil.which("cc") or shutil.which("gcc")
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fPIC", "-shared"]
+    run = subprocess.run(
+        [cc, *flags, str(native.SOURCE), "-o", str(tmp_path / "k.so"), "-lm"], capture_output=True
+    )
+    assert run.returncode == 0, run.stderr.decode()
+
+
+def test_structures_agree_with_the_c_header():
+    lib = native.library()  # raises if a ctypes mirror and its C structure differ in size
+    sizes = (native._i64 * len(native.STRUCTS))()
+    lib.mk_layout(sizes)
+    assert [native.C.sizeof(s) for s in native.STRUCTS] == list(sizes)
+
+
+def test_stimuli_are_numpys_interpolation_and_steps(echo):
+    """Table stimuli with a jump (a repeated time), points exactly on breakpoints and beyond both
+    ends, and a step stimulus: each communication point's input is np.interp / the step value."""
+    times, values = (0.1, 0.25, 0.25, 0.5, 0.7), (1.0, 3.0, -2.0, 0.3, 1.0 / 3.0)
+    sc = Scenario(
+        path=Path("echo.ssd"),
+        name="echo",
+        components=(Component("table", echo, step_ratio=2), Component("step", echo)),
+        connections=(),
+        start_time=Fraction(0),
+        stop_time=Fraction(1),
+        macro_step=Fraction(1, 20),
+        stimuli=(
+            Stimulus("table", "u", "table", times, values),
+            Stimulus("step", "u", "step", (0.25, 0.6), (4.0, 5.0)),
+        ),
+        record=(("table", "y"), ("step", "y")),
+    )
+    d = api.run(sc).data
+    t_before = d["time"][1:] - 1 / 40  # the table component's last step of each macro step began here
+    expected = [np.interp(float(Fraction(2 * n + 1, 40)), times, values) for n in range(20)]
+    assert np.array_equal(d["table.y"][1:], expected)
+    assert np.allclose(t_before, [float(Fraction(2 * n + 1, 40)) for n in range(20)])
+    step_start = d["time"][:-1]  # the step component's input was set at the macro step's start
+    np.testing.assert_array_equal(
+        d["step.y"][1:], np.where(step_start < 0.25, 0.0, np.where(step_start < 0.6, 4.0, 5.0))
+    )
+
+
+def test_paced_run_reports_a_lateness_histogram(echo):
+    sc = Scenario(
+        path=Path("echo.ssd"),
+        name="echo",
+        components=(Component("e", echo),),
+        connections=(),
+        start_time=Fraction(0),
+        stop_time=Fraction(1, 10),
+        macro_step=Fraction(1, 500),
+        stimuli=(Stimulus("e", "u", "step", (0.0,), (1.0,)),),
+    )
+    s = api.run(sc, real_time=1.0).summary
+    assert 0.095 < s.wall_time < 1.0  # 50 frames of 2 ms; the upper bound leaves room for a loaded machine
+    late = s.lateness
+    assert late is not None and 0 <= late["p50"] <= late["p99"] <= late["p99.9"] <= s.worst_lateness
+    assert s.idle_time > 0 and "frame lateness: p50" in str(s)
