@@ -124,9 +124,9 @@ def plan(sc: Scenario) -> Plan:
 
 def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
     if name == "serial":
-        from master.backends.serial import SerialBackend
+        from master.backends.in_process import InProcessBackend
 
-        return SerialBackend(p)
+        return InProcessBackend(p)
     if name == "parallel":
         from master.backends.parallel import DEFAULT_STEP_TIMEOUT, ParallelBackend
 

@@ -1,13 +1,17 @@
 /* The stepping kernel (see kernel.h): one macro step of one component, the start-up sweeps, the
  * macro-step loop with recording and real-time pacing. */
-#define _POSIX_C_SOURCE 200809L
+#define _GNU_SOURCE /* syscall (futex), clock_nanosleep */
 #include "kernel.h"
 
+#include <limits.h>
+#include <linux/futex.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stddef.h>
 #include <string.h>
+#include <sys/syscall.h>
 #include <time.h>
+#include <unistd.h>
 
 /* FMI 2.0 and 3.0 calls, spelled with their ABI types (no FMI headers needed to build). */
 typedef int fmi2_do_step(void *, double, double, int);
@@ -35,6 +39,8 @@ void mk_layout(int64_t *sizes) {
     sizes[4] = (int64_t)sizeof(mk_error);
     sizes[5] = (int64_t)sizeof(mk_pacing);
     sizes[6] = (int64_t)sizeof(mk_kernel);
+    sizes[7] = (int64_t)sizeof(mk_counter);
+    sizes[8] = (int64_t)sizeof(mk_shared);
 }
 
 static int64_t now_ns(void) {
@@ -56,6 +62,74 @@ static int32_t fail(mk_kernel *k, int32_t code, int32_t comp, int32_t call, int3
     k->error.variable = -1;
     k->error.value = 0.0;
     return code;
+}
+
+/* -- synchronisation between processes ----------------------------------------------------------- */
+
+static int64_t load(const mk_counter *c) { return __atomic_load_n(&c->value, __ATOMIC_SEQ_CST); }
+
+static void futex(mk_counter *c, int op, int32_t value, const struct timespec *timeout) {
+    /* the low 32 bits of the counter (x86-64 is little-endian): any advance changes them */
+    syscall(SYS_futex, (int32_t *)&c->value, op, value, timeout, NULL, 0);
+}
+
+/* Set c to v and wake whoever sleeps on it. */
+static void publish(mk_counter *c, int64_t v) {
+    __atomic_store_n(&c->value, v, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(&c->waiters, __ATOMIC_SEQ_CST)) futex(c, FUTEX_WAKE, INT_MAX, NULL);
+}
+
+static int64_t advance(mk_counter *c, int64_t by) {
+    int64_t v = __atomic_add_fetch(&c->value, by, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(&c->waiters, __ATOMIC_SEQ_CST)) futex(c, FUTEX_WAKE, INT_MAX, NULL);
+    return v;
+}
+
+/* Wait until c >= target: spin for spin_ns, then sleep in the futex (waking every 10 ms to see
+ * the cancel flag). MK_ABORTED if the run is cancelled meanwhile. */
+static int32_t wait_for(mk_kernel *k, mk_counter *c, int64_t target) {
+    mk_shared *sh = k->shared;
+    if (load(c) >= target) return MK_DONE;
+    int64_t spin_end = now_ns() + sh->spin_ns;
+    while (now_ns() < spin_end) {
+        for (int i = 0; i < 64; i++) {
+            if (load(c) >= target) return MK_DONE;
+            __builtin_ia32_pause();
+        }
+    }
+    const struct timespec tick = {0, 10000000};
+    for (;;) {
+        if (load(sh->cancel)) return MK_ABORTED;
+        __atomic_add_fetch(&c->waiters, 1, __ATOMIC_SEQ_CST);
+        int64_t v = load(c);
+        if (v < target) futex(c, FUTEX_WAIT, (int32_t)v, &tick);
+        __atomic_sub_fetch(&c->waiters, 1, __ATOMIC_SEQ_CST);
+        if (load(c) >= target) return MK_DONE;
+    }
+}
+
+static int32_t aborted(mk_kernel *k) {
+    k->error.code = MK_ABORTED;
+    return MK_ABORTED;
+}
+
+/* Every worker arrives before any goes on (start-up sweeps); MK_ABORTED if the run is cancelled. */
+static int32_t barrier(mk_kernel *k) {
+    if (!k->shared) return MK_DONE;
+    int64_t target = ++k->barriers * k->shared->n_workers;
+    advance(k->shared->barrier, 1);
+    return wait_for(k, k->shared->barrier, target) ? aborted(k) : MK_DONE;
+}
+
+void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
+    publish(s->cancel, 1);
+    for (int32_t i = 0; i < n_components; i++) {
+        futex(&s->published[i], FUTEX_WAKE, INT_MAX, NULL);
+        futex(&s->consumed[i], FUTEX_WAKE, INT_MAX, NULL);
+    }
+    for (int32_t w = 0; w < n_workers; w++) futex(&s->rows_written[w], FUTEX_WAKE, INT_MAX, NULL);
+    futex(s->barrier, FUTEX_WAKE, INT_MAX, NULL);
+    futex(s->rows_drained, FUTEX_WAKE, INT_MAX, NULL);
 }
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
@@ -204,18 +278,47 @@ static int32_t check_sample(mk_kernel *k, int32_t ci, const double *row, int64_t
     return MK_DONE;
 }
 
-/* Component ci through macro step n: `ratio` communication steps, outputs into its history. */
+/* Before component ci fills its inputs of macro step n: its sources' samples exist. */
+static int32_t wait_inputs(mk_kernel *k, const mk_component *c, int64_t n) {
+    for (int32_t l = 0; l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        if (wait_for(k, &k->shared->published[lk->source], n + lk->ahead)) return aborted(k);
+    }
+    return MK_DONE;
+}
+
+/* Before component ci writes macro step n into its ring: every consumer has taken its inputs of
+ * macro step n - 1, the last that reads samples this step overwrites (history_capacity). */
+static int32_t wait_ring(mk_kernel *k, const mk_component *c, int64_t n) {
+    for (int32_t i = 0; i < c->n_consumers; i++)
+        if (wait_for(k, &k->shared->consumed[c->consumers[i]], n)) return aborted(k);
+    return MK_DONE;
+}
+
+/* Component ci through macro step n: `ratio` communication steps, outputs into its history.
+ * Relaxed start-up sweeps read the previous sweep's histories, which a barrier has completed. */
 static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
     mk_component *c = &k->components[ci];
     const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
+    mk_shared *sh = relaxed ? NULL : k->shared;
+    if (sh && wait_inputs(k, c, n)) return MK_ABORTED;
     fill_inputs(k, c, n, relaxed);
+    if (sh) {
+        publish(&sh->consumed[ci], n + 1);
+        if (wait_ring(k, c, n)) return MK_ABORTED;
+    }
     int64_t j = n * kc;
+    int64_t begun = now_ns();
+    if (k->shared) {
+        k->shared->busy[1] = ci;
+        __atomic_store_n(&k->shared->busy[0], begun, __ATOMIC_RELEASE);
+    }
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
         double t = point_time(c, j);
         bool terminate = false;
         int st;
-        int64_t t0 = now_ns();
+        int64_t t0 = m ? now_ns() : begun;
         if (n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
         if (c->n_derivatives &&
             (st = ((fmi2_set_derivatives *)c->set_derivatives)(c->instance, c->derivative_vrs,
@@ -233,36 +336,48 @@ static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
     }
+    if (k->shared) {
+        __atomic_store_n(&k->shared->busy[0], 0, __ATOMIC_RELEASE);
+        if (!relaxed) publish(&k->shared->published[ci], n + 1);
+    }
     return MK_DONE;
 }
 
 /* Start-up macro step n: step it, then repeat it `startup_sweeps` times from the saved FMU states
- * with relaxed windows on the previous sweep's samples (the whole system integrated together). */
+ * with relaxed windows on the previous sweep's samples (the whole system integrated together).
+ * With several processes, barriers separate the sweeps and the snapshots of the histories. */
 static int32_t startup_step(mk_kernel *k, int64_t n) {
     int32_t code = MK_DONE, saved = 0;
     for (; saved < k->n_components; saved++) {
         mk_component *c = &k->components[saved];
+        if (!c->local) continue;
         int st = ((fmi_get_state *)c->get_state)(c->instance, &c->saved_state);
         if (st > STATUS_OK) {
             code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->ratio);
             break;
         }
     }
-    for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) code = macro_step(k, i, n, false);
+    for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
+        if (k->components[i].local) code = macro_step(k, i, n, false);
     for (int32_t s = 0; code == MK_DONE && s < k->startup_sweeps; s++) {
+        if ((code = barrier(k))) break;
         for (int32_t i = 0; i < k->n_components; i++) {
             mk_component *c = &k->components[i];
-            memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
+            if (c->local) memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
         }
+        if ((code = barrier(k))) break;
         for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
             mk_component *c = &k->components[i];
+            if (!c->local) continue;
             int st = ((fmi_set_state *)c->set_state)(c->instance, c->saved_state);
             if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
             else code = macro_step(k, i, n, true);
         }
     }
+    if (code == MK_DONE) code = barrier(k); /* the next macro step reads the final sweep's samples */
     for (int32_t i = 0; i < saved; i++) {
         mk_component *c = &k->components[i];
+        if (!c->local) continue;
         int st = ((fmi_free_state *)c->free_state)(c->instance, &c->saved_state);
         c->saved_state = NULL;
         if (st > STATUS_OK && code == MK_DONE) code = fail(k, MK_FMI_ERROR, i, MK_CALL_FREE_STATE, st, n * c->ratio);
@@ -288,9 +403,18 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     return MK_DONE;
 }
 
+/* Whether the results ring has room for one more row (several processes: wait for the supervisor). */
+static int32_t ring_room(mk_kernel *k) {
+    if (!k->shared) return k->rows_total - k->rows_drained < k->row_capacity ? MK_DONE : MK_ROWS_FULL;
+    return wait_for(k, k->shared->rows_drained, k->rows_total - k->row_capacity + 1) ? aborted(k) : MK_DONE;
+}
+
 int32_t mk_record_row(mk_kernel *k, int64_t n) {
-    double *row = k->rows + (size_t)k->row_count * (size_t)k->n_columns;
-    row[0] = (double)(k->macro_num0 + (n + 1) * k->macro_dnum) / (double)k->macro_den;
+    int32_t code = ring_room(k);
+    if (code) return code;
+    double *row = k->rows + (size_t)(k->rows_total % k->row_capacity) * (size_t)k->n_columns;
+    if (!k->shared || k->shared->worker == 0)
+        row[0] = (double)(k->macro_num0 + (n + 1) * k->macro_dnum) / (double)k->macro_den;
     for (int32_t r = 0; r < k->n_records; r++) {
         const mk_record *rec = &k->records[r];
         mk_component *c = &k->components[rec->component];
@@ -308,22 +432,18 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
             return MK_FMI_ERROR;
         }
     }
-    k->row_count++;
+    k->rows_total++;
+    if (k->shared) publish(&k->shared->rows_written[k->shared->worker], k->rows_total);
     return MK_DONE;
 }
 
 /* -- real-time pacing -------------------------------------------------------------------------- */
 
-void mk_pace_start(mk_kernel *k, int64_t n_origin) {
-    k->pacing.origin_ns = now_ns();
-    k->pacing.n_origin = n_origin;
-}
-
 #define SPIN_NS 50000 /* sleep until this long before a frame is due, then spin: wake-up jitter */
 
 /* After macro step n: wait until macro step n + 1 is due (absolute clock), or count an overrun. */
 static void pace(mk_kernel *k, int64_t n) {
-    mk_pacing *p = &k->pacing;
+    mk_pacing *p = k->pacing;
     int64_t due = p->origin_ns + (int64_t)llround((double)(n + 1 - p->n_origin) * p->frame * 1e9);
     int64_t now = now_ns(), late;
     if (now > due) {
@@ -356,16 +476,18 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
     int64_t n = n_from;
     for (; n < n_to; n++) {
         bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
-        if (due && k->row_count >= k->row_capacity) {
-            code = MK_ROWS_FULL;
+        if (due && !k->shared && (code = ring_room(k))) break;
+        if (k->shared && load(k->shared->cancel)) {
+            code = aborted(k);
             break;
         }
         if (n < k->startup_steps) code = startup_step(k, n);
         else
-            for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) code = macro_step(k, i, n, false);
+            for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
+                if (k->components[i].local) code = macro_step(k, i, n, false);
         if (code == MK_DONE && due) code = mk_record_row(k, n);
         if (code != MK_DONE) break;
-        if (k->pacing.factor > 0) pace(k, n);
+        if (k->pacing->factor > 0) pace(k, n);
         if (now_ns() >= t_end && n + 1 < n_to) {
             n++;
             code = MK_YIELD;

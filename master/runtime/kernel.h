@@ -27,6 +27,7 @@ enum {
     MK_NOT_FINITE = 4, /* an output read is NaN or Inf */
     MK_DIVERGED = 5,   /* an output grew beyond its bound */
     MK_TERMINATE = 6,  /* an FMI 3 FMU asked to terminate */
+    MK_ABORTED = 7,    /* another process failed or the supervisor cancelled the run */
 };
 
 /* Which FMI call failed (mk_error.call). */
@@ -34,6 +35,14 @@ enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
 };
+
+/* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
+ * sleep in a futex on its low 32 bits; whoever advances it wakes them. */
+typedef struct {
+    int64_t value;
+    int32_t waiters;
+    int32_t pad[13];
+} mk_counter;
 
 /* One link into a consumer: `n_cols` outputs of `source` drive inputs slot0.. of the consumer.
  *
@@ -46,6 +55,7 @@ enum {
 typedef struct {
     int32_t source;
     int32_t k_source;
+    int32_t ahead; /* 1: the source completes a macro step before the consumer starts it */
     int32_t n_cols;
     int32_t slot0;
     const int32_t *columns; /* source history column of each driven input */
@@ -104,6 +114,9 @@ typedef struct {
     int32_t cap;
     const uint8_t *reads;
     const double *bound; /* |output| beyond this has diverged */
+    int32_t n_consumers; /* components reading this history (they hold its ring back) */
+    const int32_t *consumers;
+    int32_t local;       /* stepped by this process */
     /* written by the kernel */
     void *saved_state;
     int64_t steps;
@@ -133,14 +146,30 @@ typedef struct {
 typedef struct {
     double factor;    /* simulated seconds per wall second; 0: unpaced */
     double frame;     /* wall seconds per macro step (macro step / factor) */
-    int64_t origin_ns; /* CLOCK_MONOTONIC of macro step 0's start */
-    int64_t n_origin; /* macro step at origin_ns */
+    int64_t origin_ns; /* CLOCK_MONOTONIC ns at which macro step n_origin is due to start */
+    int64_t n_origin;
     int64_t frames;
     int64_t overruns;
     int64_t worst_ns;
     int64_t idle_ns;
     int64_t histogram[MK_LATE_BINS + 1]; /* [us], last bin: MK_LATE_BINS us and more */
 } mk_pacing;
+
+/* What several processes share: progress counters per component, the start-up barrier, the
+ * results ring's counters, a cancel flag and what each process is doing (for hang detection). */
+typedef struct {
+    mk_counter *published;    /* [n_components]: macro steps completed */
+    mk_counter *consumed;     /* [n_components]: macro steps whose inputs are taken */
+    mk_counter *barrier;      /* arrivals at start-up barriers */
+    mk_counter *rows_written; /* [n_workers]: rows whose columns each worker has written */
+    mk_counter *rows_drained; /* rows the supervisor has taken out of the ring */
+    mk_counter *cancel;       /* non-zero: stop at the next wait or macro step */
+    int64_t *busy;            /* [2]: CLOCK_MONOTONIC ns at which this worker's FMU step began (0:
+                                 none running), and that component */
+    int32_t worker;
+    int32_t n_workers;
+    int64_t spin_ns; /* how long a waiter spins before it sleeps */
+} mk_shared;
 
 typedef struct {
     int32_t n_components;
@@ -152,11 +181,15 @@ typedef struct {
     int64_t macro_num0, macro_dnum, macro_den; /* macro step n starts at (num0 + n dnum) / den */
     int32_t n_columns;
     int32_t n_records;
-    const mk_record *records;
-    double *rows; /* [row_capacity][n_columns] */
+    const mk_record *records; /* the local components' columns */
+    /* results ring [row_capacity][n_columns]: row r in slot r % row_capacity */
+    double *rows;
     int64_t row_capacity;
-    int64_t row_count; /* rows waiting in `rows` (Python drains them and sets this to 0) */
-    mk_pacing pacing;
+    int64_t rows_total;   /* rows begun by this process */
+    int64_t rows_drained; /* one process: rows Python has taken out (several: see shared) */
+    mk_shared *shared;    /* NULL: one process steps everything, Python drains the ring itself */
+    int64_t barriers;     /* start-up barriers this process has passed */
+    mk_pacing *pacing;
     mk_error error;
 } mk_kernel;
 
@@ -165,12 +198,12 @@ void mk_layout(int64_t *sizes);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */
 int32_t mk_initial_sweep(mk_kernel *k, int32_t c);
-/* Record the row after macro step n (n = -1: the start time) into k->rows. */
+/* Record the row after macro step n (n = -1: the start time) into the results ring. */
 int32_t mk_record_row(mk_kernel *k, int64_t n);
 /* Step macro steps n_from .. n_to - 1 (fewer on a return other than MK_DONE); *n_next: the first
  * macro step not done. budget_s > 0: return MK_YIELD once that much wall time has passed. */
 int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next);
-/* Start real-time pacing: macro step n is due origin + (n - n_origin) frame from now. */
-void mk_pace_start(mk_kernel *k, int64_t n_origin);
+/* Raise the cancel flag and wake every waiter (a supervisor stopping the run). */
+void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers);
 
 #endif

@@ -22,7 +22,7 @@ HEADER = HERE / "kernel.h"
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, TERMINATE = range(7)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, TERMINATE, ABORTED = range(8)
 CALLS = (
     "set_real",
     "set_input_derivatives",
@@ -41,10 +41,30 @@ _p = C.c_void_p
 _i32, _i64, _u32, _f64 = C.c_int32, C.c_int64, C.c_uint32, C.c_double
 
 
+class Counter(C.Structure):
+    _fields_ = [("value", _i64), ("waiters", _i32), ("pad", _i32 * 13)]
+
+
+class Shared(C.Structure):
+    _fields_ = [
+        ("published", C.POINTER(Counter)),
+        ("consumed", C.POINTER(Counter)),
+        ("barrier", C.POINTER(Counter)),
+        ("rows_written", C.POINTER(Counter)),
+        ("rows_drained", C.POINTER(Counter)),
+        ("cancel", C.POINTER(Counter)),
+        ("busy", C.POINTER(_i64)),
+        ("worker", _i32),
+        ("n_workers", _i32),
+        ("spin_ns", _i64),
+    ]
+
+
 class Link(C.Structure):
     _fields_ = [
         ("source", _i32),
         ("k_source", _i32),
+        ("ahead", _i32),
         ("n_cols", _i32),
         ("slot0", _i32),
         ("columns", C.POINTER(_i32)),
@@ -107,6 +127,9 @@ class Component(C.Structure):
         ("cap", _i32),
         ("reads", C.POINTER(C.c_uint8)),
         ("bound", C.POINTER(_f64)),
+        ("n_consumers", _i32),
+        ("consumers", C.POINTER(_i32)),
+        ("local", _i32),
         ("saved_state", _p),
         ("steps", _i64),
         ("fmu_time", _f64),
@@ -159,13 +182,16 @@ class Kernel(C.Structure):
         ("records", C.POINTER(Record)),
         ("rows", C.POINTER(_f64)),
         ("row_capacity", _i64),
-        ("row_count", _i64),
-        ("pacing", Pacing),
+        ("rows_total", _i64),
+        ("rows_drained", _i64),
+        ("shared", C.POINTER(Shared)),
+        ("barriers", _i64),
+        ("pacing", C.POINTER(Pacing)),
         ("error", Error),
     ]
 
 
-STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel)
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared)
 
 
 class KernelBuildError(RuntimeError):
@@ -221,8 +247,8 @@ def library() -> C.CDLL:
     lib.mk_initial_sweep.argtypes = [kp, _i32]
     lib.mk_record_row.argtypes = [kp, _i64]
     lib.mk_run.argtypes = [kp, _i64, _i64, _f64, C.POINTER(_i64)]
-    lib.mk_pace_start.argtypes = [kp, _i64]
-    lib.mk_pace_start.restype = None
+    lib.mk_cancel.argtypes = [C.POINTER(Shared), _i32, _i32]
+    lib.mk_cancel.restype = None
     for f in (lib.mk_initial_sweep, lib.mk_record_row, lib.mk_run):
         f.restype = _i32
     return lib

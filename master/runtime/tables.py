@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ctypes as C
 import math
+import mmap
 
 import numpy as np
 
@@ -19,7 +20,6 @@ from master.backends.component import (
     UNSTABLE_HINT,
     SimulationError,
     history_capacity,
-    output_names,
     samples_read,
 )
 from master.coupling import weights
@@ -28,6 +28,11 @@ from master.runtime import native
 from master.schedule import Link, Plan, PlanComponent
 
 EXACT = 2**53  # clock integers beyond this would not convert to float exactly
+ROW_CAPACITY = 4096  # rows of the results ring
+ALIGN = 64  # bytes: arrays start on their own cache line
+SPIN_S = 50e-6  # s a waiting worker spins before it sleeps in a futex
+
+Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
 
 FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used with that version
     "do_step": ("fmi2DoStep", "fmi3DoStep"),
@@ -98,24 +103,62 @@ def _function(fmu: Fmu, slot: str) -> int | None:
         return None
 
 
-class CompiledPlan:
-    """The kernel tables of `plan` for `fmus` (opened, in initialisation mode), by component name.
+def layout(
+    plan: Plan, outs: dict[str, list[str]], n_workers: int, row_capacity: int = ROW_CAPACITY
+) -> Layout:
+    """The arrays a run's processes share (or one process keeps): per component its output history
+    and the previous start-up sweep's copy, the results ring, and with n_workers > 0 the
+    synchronisation counters, the busy markers and the pacing statistics of each worker."""
+    out: Layout = {}
+    for pc in plan.components:
+        shape = (history_capacity(plan, pc.name), len(outs[pc.name]))
+        out[f"hist:{pc.name}"] = (shape, "float64")
+        out[f"previous:{pc.name}"] = (shape, "float64")
+    out["rows"] = ((row_capacity, 1 + len(plan.record)), "float64")
+    counter, pacing = C.sizeof(native.Counter), C.sizeof(native.Pacing)
+    nc, nw = len(plan.components), max(n_workers, 1)
+    out["published"] = ((nc, counter), "uint8")
+    out["consumed"] = ((nc, counter), "uint8")
+    out["barrier"] = ((1, counter), "uint8")
+    out["rows_written"] = ((nw, counter), "uint8")
+    out["rows_drained"] = ((1, counter), "uint8")
+    out["cancel"] = ((1, counter), "uint8")
+    out["busy"] = ((nw, 8), "int64")  # one cache line per worker
+    out["pacing"] = ((nw, pacing), "uint8")
+    out["steps"] = ((nc,), "int64")
+    out["fmu_time"] = ((nc,), "float64")
+    return out
 
-    row_capacity: rows the results buffer holds before `run` returns to have them drained.
+
+class CompiledPlan:
+    """The kernel tables of `plan` in one process.
+
+    fmus: the opened FMUs (in initialisation mode) of the components this process steps, by name;
+    outs: the output names of every component (`output_names`); memory: arrays of `layout`, private
+    or shared with the other workers; worker, n_workers: this process's place (n_workers = 0: the
+    only process, Python drains the results ring itself).
     """
 
-    def __init__(self, plan: Plan, fmus: dict[str, Fmu], row_capacity: int = 4096):
+    def __init__(
+        self,
+        plan: Plan,
+        fmus: dict[str, Fmu],
+        outs: dict[str, list[str]],
+        memory: Memory,
+        worker: int = 0,
+        n_workers: int = 0,
+    ):
         self.plan = plan
         self.lib = native.library()
         self.names = [pc.name for pc in plan.components]
-        self.fmus = [fmus[n] for n in self.names]
+        self.fmus = [fmus.get(n) for n in self.names]
+        self.outs = outs
+        self.memory = memory
         self._keep: list[object] = []  # every array and structure the kernel points into
-        self.outs = {n: output_names(plan, n, fmus[n].variables) for n in self.names}
-        self.hist: dict[str, np.ndarray] = {}
         self.bound: dict[str, np.ndarray] = {}
         comps = (native.Component * len(self.names))()
         for i, pc in enumerate(plan.components):
-            comps[i] = self._component(pc, fmus[pc.name])
+            comps[i] = self._component(pc, fmus.get(pc.name))
         self.components = comps
         k = native.Kernel()
         k.n_components = len(comps)
@@ -127,16 +170,22 @@ class CompiledPlan:
         mc = plan.macro_clock
         self._check_clock("the macro clock", mc.num0, mc.dnum, mc.den, plan.n_macro)
         k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
-        records = (native.Record * max(len(plan.record), 1))()
-        for i, (comp, var) in enumerate(plan.record):
-            records[i] = self._record(1 + i, comp, var)
-        k.n_records = len(plan.record)
+        local = [(i, c, v) for i, (c, v) in enumerate(plan.record) if c in fmus]
+        self.record_index = [i for i, _, _ in local]  # plan.record index of each local column
+        records = (native.Record * max(len(local), 1))()
+        for r, (i, comp, var) in enumerate(local):
+            records[r] = self._record(1 + i, comp, var)
+        k.n_records = len(local)
         k.records = records
         k.n_columns = 1 + len(plan.record)
-        self.rows = np.zeros((row_capacity, k.n_columns))
+        self.rows = memory["rows"]
         k.rows = _ptr(self.rows, C.c_double)
-        k.row_capacity = row_capacity
-        self._keep += [records, self.rows]
+        k.row_capacity = len(self.rows)
+        self.pacing = native.Pacing.from_buffer(memory["pacing"][worker])
+        k.pacing = C.pointer(self.pacing)
+        if n_workers:
+            k.shared = C.pointer(shared_view(memory, worker, n_workers))
+        self._keep += [records]
         self.kernel = k
         self.ref = C.byref(k)
         self.position = 0  # the next macro step (after a failure: the one that failed)
@@ -159,9 +208,32 @@ class CompiledPlan:
                 float(self.plan.scenario.start_time),
             )
 
-    def _component(self, pc: PlanComponent, fmu: Fmu) -> native.Component:
+    def _component(self, pc: PlanComponent, fmu: Fmu | None) -> native.Component:
+        """A component's tables; for one stepped by another process (fmu None) only what its
+        consumers here read: its clock and its history."""
         plan = self.plan
         c = native.Component()
+        self._check_clock(
+            f"component {pc.name}", pc.clock.num0, pc.clock.dnum, pc.clock.den, plan.n_macro, pc.ratio
+        )
+        c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
+        c.h = float(pc.step)
+        c.ratio = pc.ratio
+        out = self.outs[pc.name]
+        hist, previous = self.memory[f"hist:{pc.name}"], self.memory[f"previous:{pc.name}"]
+        c.n_out, c.cap = len(out), len(hist)
+        c.hist, c.hist_previous = _ptr(hist, C.c_double), _ptr(previous, C.c_double)
+        consumers = sorted({self.names.index(lk.consumer) for lk in plan.links if lk.source == pc.name})
+        c.n_consumers = len(consumers)
+        c.consumers = _ptr(self._array(consumers, np.int32), C.c_int32)
+        if fmu is None:
+            return c
+        c.local = 1
+        self._fmu_tables(c, pc, fmu)
+        return c
+
+    def _fmu_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
+        plan = self.plan
         c.fmi = 3 if fmu.fmi3 else 2
         c.instance = fmu.slave.component
         for slot in FMI_FUNCTIONS:
@@ -205,6 +277,7 @@ class CompiledPlan:
             c_links[i] = native.Link(
                 source=self.names.index(lk.source),
                 k_source=lk.k_source,
+                ahead=int(lk.source_first),
                 n_cols=len(lk.inputs),
                 slot0=slot,
                 columns=_ptr(self._array([src_out.index(o) for o in lk.outputs], np.int32), C.c_int32),
@@ -232,17 +305,10 @@ class CompiledPlan:
         c.n_stimuli, c.stimuli = len(stimuli), c_stim
         self._keep += [c_links, c_stim]
 
-        cap = history_capacity(plan, pc.name)
-        c.n_out = len(out)
         c.out_vrs = _ptr(self._array([fmu.variables[o].vr for o in out], np.uint32), C.c_uint32)
-        self.hist[pc.name] = hist = self._array(np.zeros((cap, len(out))), np.float64)
-        c.hist = _ptr(hist, C.c_double)
-        c.hist_previous = _ptr(self._array(np.zeros((cap, len(out))), np.float64), C.c_double)
-        c.cap = cap
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
-        return c
 
     def _record(self, column: int, comp: str, var: str) -> native.Record:
         i = self.names.index(comp)
@@ -266,71 +332,58 @@ class CompiledPlan:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
 
-    def pace(self, factor: float) -> None:
-        """Pace the macro steps from the next one on: simulated time runs `factor` times the wall clock."""
+    def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
+        """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as
+        time.monotonic_ns) + (n - n_origin) H / factor; simulated time runs `factor` times the wall clock."""
         if not factor > 0:
             raise ValueError(f"real-time factor must be positive, got {factor}")
-        p = self.kernel.pacing
-        p.factor = factor
-        p.frame = float(self.plan.scenario.macro_step) / factor
-        self.lib.mk_pace_start(self.ref, 0)
-
-    def pacing_stats(self) -> dict[str, float] | None:
-        """Real-time lateness (s) of the paced frames: p50, p99, p99.9 (upper bin edges, 1 us bins),
-        worst; frames, overruns (frames whose work ended after they were due), idle (s spent waiting)."""
-        p = self.kernel.pacing
-        if not p.factor > 0:
-            return None
-        hist = np.frombuffer(p.histogram, dtype=np.int64)
-        cum = np.cumsum(hist)
-
-        def quantile(q: float) -> float:
-            if not p.frames:
-                return 0.0
-            return min(float(np.searchsorted(cum, q * p.frames) + 1) * 1e-6, p.worst_ns * 1e-9)
-
-        return {
-            "frames": int(p.frames),
-            "overruns": int(p.overruns),
-            "p50": quantile(0.5),
-            "p99": quantile(0.99),
-            "p99.9": quantile(0.999),
-            "worst": p.worst_ns * 1e-9,
-            "idle": p.idle_ns * 1e-9,
-        }
+        p = self.pacing
+        p.factor, p.frame = factor, float(self.plan.scenario.macro_step) / factor
+        p.origin_ns, p.n_origin = origin_ns, n_origin
 
     def set_bounds(self) -> None:
-        """Divergence bounds from the samples at the start time (after initialisation)."""
-        for name, hist in self.hist.items():
-            self.bound[name][:] = GROWTH_LIMIT * np.maximum(1.0, np.abs(hist[0]))
+        """Divergence bounds of the local components from their samples at the start time."""
+        for name, bound in self.bound.items():
+            bound[:] = GROWTH_LIMIT * np.maximum(1.0, np.abs(self.memory[f"hist:{name}"][0]))
 
     def record_row(self, n: int) -> None:
-        """The row after macro step n (n = -1: the start time) into the results buffer."""
+        """The row after macro step n (n = -1: the start time) into the results ring."""
         if self.lib.mk_record_row(self.ref, n) != native.DONE:
             raise self.error()
 
     def run(self, n_from: int, n_to: int, budget: float = 0.0) -> tuple[int, int]:
         """(code, next macro step): step n_from .. n_to - 1 (see kernel.h mk_run); raise on failure."""
         n_next = C.c_int64(n_from)
-        code = self.lib.mk_run(self.ref, n_from, n_to, budget, C.byref(n_next))
-        self.position = n_next.value
+        try:
+            code = self.lib.mk_run(self.ref, n_from, n_to, budget, C.byref(n_next))
+        finally:
+            self.position = n_next.value
+            self.publish_stats()
         if code > native.YIELD:
             raise self.error()
         return code, n_next.value
 
     def take_rows(self) -> np.ndarray:
-        """The rows waiting in the results buffer (a view valid until the next run); empties it."""
-        n = self.kernel.row_count
-        self.kernel.row_count = 0
-        return self.rows[:n]
+        """The rows waiting in the results ring (the only process); empties it."""
+        k = self.kernel
+        rows = ring_rows(self.rows, k.rows_drained, k.rows_total)
+        k.rows_drained = k.rows_total
+        return rows
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
-        """(communication steps, wall time inside FMI calls in s) per component."""
-        comps = self.components
+        """(communication steps, wall time inside FMI calls in s) per component, as published."""
+        steps, fmu_time = self.memory["steps"], self.memory["fmu_time"]
         return (
-            {n: int(comps[i].steps) for i, n in enumerate(self.names)},
-            {n: float(comps[i].fmu_time) for i, n in enumerate(self.names)},
+            {n: int(steps[i]) for i, n in enumerate(self.names)},
+            {n: float(fmu_time[i]) for i, n in enumerate(self.names)},
         )
+
+    def publish_stats(self) -> None:
+        """Communication steps and wall time inside FMI calls of the local components, into memory."""
+        steps, fmu_time = self.memory["steps"], self.memory["fmu_time"]
+        for i, c in enumerate(self.components):
+            if c.local:
+                steps[i], fmu_time[i] = c.steps, c.fmu_time
 
     # -- errors ---------------------------------------------------------------------------------
     def error(self, initial: bool = False) -> SimulationError:
@@ -353,8 +406,81 @@ class CompiledPlan:
         call = native.CALLS[e.call]
         cause = fmu.call_error(call, e.status)
         if call in ("get_integer", "get_boolean"):
-            _, var = self.plan.record[e.variable]
+            _, var = self.plan.record[self.record_index[e.variable]]
             return SimulationError(f"{cause}: reading {var}", name, math.nan, var)
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+
+def ring_rows(rows: np.ndarray, first: int, end: int) -> np.ndarray:
+    """Rows first .. end - 1 of a results ring (row r in slot r % len(rows)), in order."""
+    cap = len(rows)
+    a, b = first % cap, end % cap
+    if end - first <= 0:
+        return rows[:0]
+    if a < b or b == 0:
+        return rows[a : b or cap]
+    return np.concatenate([rows[a:], rows[:b]])
+
+
+def counter(memory: Memory, name: str, i: int = 0) -> native.Counter:
+    """The i-th synchronisation counter of array `name` (a view into the memory)."""
+    return native.Counter.from_buffer(memory[name][i])
+
+
+def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_S) -> native.Shared:
+    """kernel.h's mk_shared for `worker` over the counters in `memory` (spin: s before a waiter sleeps)."""
+    sh = native.Shared()
+    for name in ("published", "consumed", "barrier", "rows_written", "rows_drained", "cancel"):
+        setattr(sh, name, C.cast(memory[name].ctypes.data, C.POINTER(native.Counter)))
+    sh.busy = C.cast(memory["busy"][worker].ctypes.data, C.POINTER(C.c_int64))
+    sh.worker, sh.n_workers, sh.spin_ns = worker, n_workers, int(spin * 1e9)
+    return sh
+
+
+def pacing_stats(pacings: list[native.Pacing]) -> dict[str, float] | None:
+    """Real-time lateness (s) over the paced frames of every worker: p50, p99, p99.9 (upper edges
+    of 1 us bins), worst; frames, overruns (frames whose work ended after they were due), idle (s
+    spent waiting for the clock). None when unpaced."""
+    paced = [p for p in pacings if p.factor > 0]
+    if not paced:
+        return None
+    hist = sum(np.frombuffer(p.histogram, dtype=np.int64) for p in paced)
+    cum = np.cumsum(hist)
+    frames = int(cum[-1])
+    worst = max(p.worst_ns for p in paced) * 1e-9
+
+    def quantile(q: float) -> float:
+        return min(float(np.searchsorted(cum, q * frames) + 1) * 1e-6, worst) if frames else 0.0
+
+    return {
+        "frames": frames,
+        "overruns": sum(int(p.overruns) for p in paced),
+        "p50": quantile(0.5),
+        "p99": quantile(0.99),
+        "p99.9": quantile(0.999),
+        "worst": worst,
+        "idle": max(p.idle_ns for p in paced) * 1e-9,
+    }
+
+
+class Memory:
+    """Named arrays of a `layout` in one block: private to this process, or (shared=True) an
+    anonymous shared mapping that processes forked afterwards see too. Being anonymous, it has no
+    name in /dev/shm and vanishes with the last process that maps it, however that process ends."""
+
+    def __init__(self, layout: Layout, shared: bool = False):
+        offsets, size = {}, 0
+        for name, (shape, dtype) in layout.items():
+            offsets[name] = size
+            nbytes = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+            size += -(-max(nbytes, 1) // ALIGN) * ALIGN
+        self.buffer = mmap.mmap(-1, max(size, ALIGN)) if shared else bytearray(max(size, ALIGN))
+        self.arrays = {
+            name: np.ndarray(shape, dtype=dtype, buffer=self.buffer, offset=offsets[name])
+            for name, (shape, dtype) in layout.items()
+        }
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.arrays[name]

@@ -1,0 +1,99 @@
+"""In-process backend: every FMU in the master's own process, the macro-step loop in the kernel.
+
+The fastest way to run and the easiest to debug, but unprotected: an FMU that crashes takes the
+master with it. `master run --in-process` selects it; the default runs the same kernel in a
+worker process (master.backends.workers).
+"""
+
+from __future__ import annotations
+
+import time
+
+from master.backends.component import open_fmu, output_names
+from master.fmu import Fmu
+from master.recorder import Recorder
+from master.runtime.tables import CompiledPlan, Memory, layout, pacing_stats
+from master.schedule import Plan
+
+
+class InProcessBackend:
+    """Executes a Plan in this process. Use: `open()`, `initialize(recorder)`, `run(...)` ..., `close()`."""
+
+    name = "in-process"
+
+    def __init__(self, plan: Plan):
+        self.plan = plan
+        self.fmus: dict[str, Fmu] = {}
+        self.compiled: CompiledPlan | None = None
+
+    def open(self) -> None:
+        """Load, instantiate and parameterise every FMU; enter initialisation mode; compile the plan."""
+        sc = self.plan.scenario
+        for pc in self.plan.components:
+            self.fmus[pc.name] = open_fmu(sc, sc.component(pc.name))
+        outs = {name: output_names(self.plan, name, fmu.variables) for name, fmu in self.fmus.items()}
+        self.compiled = CompiledPlan(self.plan, self.fmus, outs, Memory(layout(self.plan, outs, 0)))
+
+    def initialize(self, recorder: Recorder) -> None:
+        """Make inputs and outputs at the start time consistent (see `initialize`); record the
+        row at the start time."""
+        assert self.compiled is not None
+        initialize(self.compiled, self.fmus)
+        recorder.write(self.compiled.take_rows())
+
+    def pace(self, factor: float) -> None:
+        """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
+        assert self.compiled is not None
+        self.compiled.pace(factor, time.monotonic_ns(), self.compiled.position)
+
+    def run(self, n_from: int, n_to: int, recorder: Recorder, budget: float = 0.0) -> int:
+        """Step macro steps n_from .. n_to - 1, for at most about `budget` s of wall time (0: no limit);
+        the rows go to `recorder`, also those before a failure. Returns the next macro step."""
+        cp = self.compiled
+        assert cp is not None
+        try:
+            return cp.run(n_from, n_to, budget)[1]
+        finally:
+            recorder.write(cp.take_rows())
+
+    @property
+    def position(self) -> int:
+        """The next macro step to run (after a failure: the one that failed)."""
+        return self.compiled.position if self.compiled is not None else 0
+
+    def pacing(self) -> dict | None:
+        """Real-time statistics (see `pacing_stats`), None when unpaced."""
+        return pacing_stats([self.compiled.pacing]) if self.compiled is not None else None
+
+    def stats(self) -> tuple[dict[str, int], dict[str, float]]:
+        """(communication steps, wall time inside FMI calls in s) per component."""
+        if self.compiled is None:
+            return {pc.name: 0 for pc in self.plan.components}, {pc.name: 0.0 for pc in self.plan.components}
+        return self.compiled.stats()
+
+    def close(self) -> None:
+        for f in self.fmus.values():
+            f.close()
+        self.fmus.clear()
+        self.compiled = None
+
+
+def initialize(cp: CompiledPlan, fmus: dict[str, Fmu]) -> None:
+    """Initial sweeps, exit of initialisation mode, divergence bounds and the row at the start time,
+    for the components of `fmus` (all of them: one process; several processes: see workers.py).
+
+    One sweep per component (set inputs from the sources' outputs, read own outputs) settles any
+    acyclic chain of direct feedthrough. Sweeps run in initialisation mode (for FMUs that compute
+    initial outputs there) and again after leaving it (for FMUs that compute them only on exit).
+    """
+    n = len(cp.names)
+    for _ in range(n):
+        for i in range(n):
+            cp.initial_sweep(i)
+    for name, fmu in fmus.items():
+        cp.exit_initialization(name, fmu)
+    for _ in range(n):
+        for i in range(n):
+            cp.initial_sweep(i)
+    cp.set_bounds()
+    cp.record_row(-1)
