@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import master.api as api
-from master.backends.parallel import choose_backend
+from master.backends.auto import choose_backend
 from master.backends.worker import NOP, WorkerPool, cpu_count
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
@@ -74,7 +74,7 @@ def compare(label: str, sc: Scenario, repeat: int) -> tuple[float, float]:
 
 def sync_cost(workers: int, rounds: int = 2000) -> float:
     """Mean wall time (s) of one empty command round trip to `workers` workers."""
-    from master.backends.parallel import _IdleTask
+    from master.backends.auto import _IdleTask
 
     with WorkerPool([(["idle"], _IdleTask)] * workers) as pool:
         for _ in range(100):
@@ -248,7 +248,7 @@ def main() -> int:
             print(f"  work {work:3d} us: " + " | ".join(cells))
 
     if args.start_methods:
-        from master.backends.parallel import _IdleTask
+        from master.backends.auto import _IdleTask
 
         print("\nworker start (2 workers, no FMU), best of 3:")
         for method in ("fork", "forkserver", "spawn"):

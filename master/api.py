@@ -12,7 +12,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from master.backends.component import SimulationError
-from master.backends.driver import execute
+from master.backends.driver import execute, stop_signals
 from master.fmu import FmuError, read_description, variables_of
 from master.recorder import Recorder, RunResult
 from master.scenario.model import Scenario, Value
@@ -20,7 +20,7 @@ from master.schedule import Capability, Plan, PlanError, build_plan
 
 log = logging.getLogger("master")
 
-BACKENDS = ("serial", "parallel", "auto")
+BACKENDS = ("serial", "parallel", "auto", "in-process")
 
 
 class UsageError(Exception):
@@ -123,18 +123,21 @@ def plan(sc: Scenario) -> Plan:
 
 
 def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
-    if name == "serial":
+    from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, worker_groups
+
+    timeout = step_timeout or DEFAULT_STEP_TIMEOUT
+    if name == "in-process":
         from master.backends.in_process import InProcessBackend
 
         return InProcessBackend(p)
+    if name == "serial":
+        return WorkerBackend(p, [[pc.name for pc in p.components]], timeout)
     if name == "parallel":
-        from master.backends.parallel import DEFAULT_STEP_TIMEOUT, ParallelBackend
-
-        return ParallelBackend(p, step_timeout=step_timeout or DEFAULT_STEP_TIMEOUT)
+        return WorkerBackend(p, worker_groups(p), timeout)
     if name == "auto":
-        from master.backends.parallel import DEFAULT_STEP_TIMEOUT, choose_backend
+        from master.backends.auto import choose_backend
 
-        chosen, why = choose_backend(p, step_timeout or DEFAULT_STEP_TIMEOUT)
+        chosen, why = choose_backend(p, timeout)
         log.info("backend %s chosen automatically: %s", chosen, why)
         be = _make_backend(chosen, p, step_timeout)
         be.name = f"{chosen} (auto: {why})"
@@ -159,10 +162,13 @@ def run(
     """Run a scenario (file or `Scenario`) and return its results.
 
     stop_time, output_interval in s; `record` and `set_values` use "component.variable" names;
-    `real_time` paces the run (1.0: wall clock speed). backend: "serial", "parallel" (a worker
-    process per component or group; `step_timeout` s per macro step, default 10) or "auto"
-    (parallel when a timed serial trial says it pays). On failure a SimulationError is raised
-    after the rows computed so far are written; it carries `.result` (a RunResult).
+    `real_time` paces the run (1.0: wall clock speed). backend: "serial" (one worker process runs
+    every FMU), "parallel" (a worker process per component or group), "auto" (parallel when a
+    timed serial trial says it pays) or "in-process" (the FMUs in this process: no protection
+    against a crashing FMU, for debugging); `step_timeout`: s one component's macro step may take
+    before it counts as a hang (default 10). On failure, SIGINT, SIGTERM or SIGHUP a
+    SimulationError is raised after the rows computed so far are written; it carries `.result`
+    (a RunResult) and, when a signal stopped the run, `.signal` (its number).
     """
     if isinstance(scenario, Scenario):
         sc = apply_overrides(scenario, stop_time, record, set_values, output_interval)
@@ -174,22 +180,23 @@ def run(
     p = plan(sc)
     for note in p.notes:
         log.info(note)
-    be = _make_backend(backend, p, step_timeout)
-    columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
-    recorder = Recorder(columns, Path(output) if output is not None else None)
-    try:
-        be.open()
-        summary = execute(p, be, recorder, real_time=real_time, progress=progress)
-    except SimulationError as e:
-        summary = e.summary  # type: ignore[attr-defined]
-        summary.output = str(output) if output is not None else None
-        e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
-        raise
-    except BaseException:
-        recorder.discard()
-        raise
-    finally:
-        be.close()
+    with stop_signals():
+        be = _make_backend(backend, p, step_timeout)
+        columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
+        recorder = Recorder(columns, Path(output) if output is not None else None)
+        try:
+            be.open()
+            summary = execute(p, be, recorder, real_time=real_time, progress=progress)
+        except SimulationError as e:
+            summary = e.summary  # type: ignore[attr-defined]
+            summary.output = str(output) if output is not None else None
+            e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
+            raise
+        except BaseException:
+            recorder.discard()
+            raise
+        finally:
+            be.close()
     summary.output = str(output) if output is not None else None
     result = RunResult(recorder, summary)
     if plot is not None:

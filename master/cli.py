@@ -41,6 +41,14 @@ def _parser() -> argparse.ArgumentParser:
         "--parallel", dest="backend", action="store_const", const="parallel", help="parallel backend"
     )
     g.add_argument(
+        "--in-process",
+        dest="backend",
+        action="store_const",
+        const="in-process",
+        help="run the FMUs inside this process: no worker, but an FMU that crashes takes the "
+        "master down with it and a hang is not detected (for debugging)",
+    )
+    g.add_argument(
         "--backend",
         dest="backend",
         choices=api.BACKENDS,
@@ -50,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
         "--step-timeout",
         type=float,
         metavar="S",
-        help="parallel: a macro step longer than this is a hang (s)",
+        help="a macro step of one component taking longer than this is a hang (s, default 10)",
     )
     r.add_argument("--plot", metavar="PNG", help="plot the recorded variables into this file")
     r.add_argument(
@@ -88,7 +96,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit code (0 ok, 1 failed run or bad input, 2 bad usage)."""
+    """Entry point; returns the exit code (0 ok, 1 failed run or bad input, 2 bad usage, 128 + n
+    stopped by signal n: 129 SIGHUP, 130 SIGINT, 143 SIGTERM)."""
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["build-fmus"]:
         from master.fmubuild import main as build_main
@@ -105,6 +114,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return _dispatch(args, quiet)
+    except SimulationError as e:
+        print(f"error: {e}", file=sys.stderr)
+        signum = getattr(e, "signal", None)
+        return 128 + signum if signum else 1  # the shell's convention: 130 SIGINT, 143 SIGTERM
     except USER_ERRORS as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -1,11 +1,11 @@
-"""Coupling polynomials against exact polynomials; ring buffer; stimuli."""
+"""Coupling polynomials against exact polynomials; stimuli."""
 
 from fractions import Fraction
 
 import numpy as np
 import pytest
 
-from master.coupling import History, lagrange_weights, stimulus_value, weights
+from master.coupling import lagrange_weights, stimulus_value
 from master.scenario.model import Stimulus
 
 
@@ -31,18 +31,6 @@ def test_weights_reproduce_polynomials_of_their_degree_and_derivatives(order, s)
         big = np.polynomial.Polynomial(np.r_[c, 1.0])
         w = np.array(lagrange_weights(order, s))
         assert abs(w @ big(-np.arange(order + 1.0)) - big(float(s))) > 1e-6
-
-
-def test_history_ring_buffer_combines_the_right_samples():
-    h = History(2, 4)
-    for j in range(10):
-        h.push(j, np.array([j, 10.0 * j]))
-    out = np.zeros(1)
-    w = weights(1, 1, 1)  # linear extrapolation one step ahead
-    h.combine(9, w, np.array([1]), out)
-    assert out[0] == pytest.approx(100.0)
-    h.combine(8, weights(2, 1, 2), np.array([0]), out)  # s = 1/2 beyond sample 8
-    assert out[0] == pytest.approx(8.5)
 
 
 def test_stimuli():

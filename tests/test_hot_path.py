@@ -1,7 +1,7 @@
-"""The stepping loop's shortcuts give the step-by-step arithmetic bit for bit.
+"""The kernel's tables give the step-by-step arithmetic bit for bit.
 
-LinkBlock (all steps of a macro step at once) against History.combine step by step; stimulus
-spans against point values; outputs read only where used, with unchanged results.
+A link's tables (master.runtime.tables.link_tables, read as kernel.c reads them) against the
+polynomial of each step evaluated on its own; outputs read only where used, with unchanged results.
 """
 
 import shutil
@@ -15,18 +15,17 @@ import pytest
 from test_oscillator import oscillator
 
 import master.api as api
-import master.backends.component as component
-from master.backends.component import _InLink, samples_read
-from master.coupling import History, stimulus_span, stimulus_value, weights
-from master.scenario.model import Stimulus
+import master.runtime.tables as tables
+from master.backends.component import samples_read
+from master.coupling import weights
+from master.runtime.tables import link_tables
 from master.schedule import Link
 
 
-def step_by_step(lk: Link, hist: History, n: int, relaxed: bool, blocks, cols) -> np.ndarray:
-    """The polynomial values of every step of macro step n, one step at a time (as before LinkBlock).
-
-    Derivatives are per unit source step (the runner divides by h_s**d afterwards).
-    """
+def step_by_step(lk: Link, ring: np.ndarray, n: int, relaxed: bool, blocks, cols) -> np.ndarray:
+    """The polynomial values of every step of macro step n, one step at a time: sum_i w_i y(j_end - i)
+    in the order i = 0, 1, ... (derivatives per unit source step)."""
+    cap = len(ring)
     out = np.zeros((len(blocks), lk.k_consumer, len(cols)))
     for m in range(lk.k_consumer):
         j = n * lk.k_consumer + m
@@ -34,47 +33,48 @@ def step_by_step(lk: Link, hist: History, n: int, relaxed: bool, blocks, cols) -
         for b, (shift, d) in enumerate(blocks):
             if d <= p:
                 w = weights(p, (j + shift) * lk.k_source - j_end * lk.k_consumer, lk.k_consumer, d)
-                hist.combine(j_end, w, cols, out[b, m])
+                acc = w[0] * ring[j_end % cap, cols]
+                for i in range(1, len(w)):
+                    acc = acc + w[i] * ring[(j_end - i) % cap, cols]
+                out[b, m] = acc
+    return out
+
+
+def from_tables(tabs, lk: Link, ring: np.ndarray, n: int, relaxed: bool, n_blocks: int, cols) -> np.ndarray:
+    """The same values as kernel.c's fill_inputs computes them from the link's tables."""
+    n_plain, n_relaxed, offsets, w, zero = tabs
+    t = n_plain + 1 + min(n, n_relaxed) if relaxed else min(n, n_plain)
+    cap, base = len(ring), n * lk.k_source
+    out = np.zeros((n_blocks, lk.k_consumer, len(cols)))
+    for m in range(lk.k_consumer):
+        for b in range(n_blocks):
+            if zero[t, b, m]:
+                continue
+            acc = w[t, b, 0, m] * ring[(base + offsets[t, 0, m]) % cap, cols]
+            for q in range(1, lk.order + 1):
+                acc = acc + w[t, b, q, m] * ring[(base + offsets[t, q, m]) % cap, cols]
+            out[b, m] = acc
     return out
 
 
 @pytest.mark.parametrize("order", [0, 1, 2, 3])
 @pytest.mark.parametrize("ks,kc", [(1, 1), (1, 5), (5, 1), (3, 2), (2, 3)])
 @pytest.mark.parametrize("first", [False, True])
-def test_link_block_equals_step_by_step_combine(order, ks, kc, first):
+def test_link_tables_equal_step_by_step_polynomials(order, ks, kc, first):
     rng = np.random.default_rng(100 * order + 10 * ks + kc)
     lk = Link("s", "c", ("a", "b"), ("u", "v"), order, first, ks, kc)
     blocks = [(0, 0), (1, 0)] + [(0, d) for d in range(1, 4)]
     cols = np.array([2, 0])
-    il = _InLink(lk, cols, slice(0, 2), blocks, 0.37)
-    hist = History(3, ks + order + 3)
+    tabs = link_tables(lk, blocks)
+    ring = np.zeros((ks + order + 3, 3))
     for n in range(8):
         for j in range(n * ks + 1 if n else 0, (n + 1) * ks + 1):  # the source runs ahead by one macro step
-            hist.push(j, rng.normal(size=3) * 10.0 ** rng.integers(-3, 4, size=3))
+            ring[j % len(ring)] = rng.normal(size=3) * 10.0 ** rng.integers(-3, 4, size=3)
         for relaxed in (False, True):
-            out = np.empty((len(blocks), kc, 2))
-            il.block(n, relaxed).evaluate(hist, n * ks, out)
-            ref = step_by_step(lk, hist, n, relaxed, blocks, cols)
-            assert out.tobytes() == ref.tobytes(), (n, relaxed)
-    assert il.steady[False] <= order + 1
-
-
-@pytest.mark.parametrize(
-    "stim",
-    [
-        Stimulus("c", "u", "step", (0.1, 0.5, 0.5, 0.9), (1.0, -2.0, 3.0, 4.0)),
-        Stimulus("c", "u", "table", (0.2, 0.4, 0.6, 0.6, 0.8), (1.0, 1.0, 3.0, -1.0, 0.5)),
-    ],
-    ids=["step", "table"],
-)
-def test_stimulus_span_holds_the_value_over_its_span(stim):
-    for t in np.linspace(-0.1, 1.1, 241):
-        v, lo, hi = stimulus_span(stim, float(t), 7.0)
-        assert v == stimulus_value(stim, float(t), 7.0)
-        assert lo <= t and (hi > t or lo == hi == t)
-        inside = np.linspace(lo, hi, 9)[:-1] if np.isfinite(lo) and np.isfinite(hi) else [t]
-        for s in inside:
-            assert stimulus_value(stim, float(s), 7.0) == v
+            got = from_tables(tabs, lk, ring, n, relaxed, len(blocks), cols)
+            ref = step_by_step(lk, ring, n, relaxed, blocks, cols)
+            assert got.tobytes() == ref.tobytes(), (n, relaxed)
+    assert tabs[0] <= order + 1 and tabs[1] <= order + 1
 
 
 def test_outputs_are_read_where_a_consumer_or_the_recorder_uses_them():
@@ -91,7 +91,7 @@ def test_outputs_are_read_where_a_consumer_or_the_recorder_uses_them():
 def test_reading_fewer_outputs_changes_no_result(monkeypatch):
     sc = oscillator(Fraction(1, 20), 0, ratios=(5, 1), interpolate=(False, False), stop=Fraction(2))
     fewer = api.run(sc)
-    monkeypatch.setattr(component, "samples_read", lambda plan, name: [True] * plan.component(name).ratio)
+    monkeypatch.setattr(tables, "samples_read", lambda plan, name: [True] * plan.component(name).ratio)
     every = api.run(sc)
     assert fewer.summary.steps == every.summary.steps
     for name in fewer.data.dtype.names:

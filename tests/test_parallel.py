@@ -16,11 +16,13 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from fmpy.util import read_csv
 
 import master.api as api
+from master.backends.auto import choose_backend, levels
 from master.backends.component import SimulationError
-from master.backends.parallel import ParallelBackend, choose_backend, levels, worker_groups
 from master.backends.worker import cpu_count
+from master.backends.workers import WorkerBackend, worker_groups
 from master.evidence.oscillator import scene
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
@@ -172,15 +174,22 @@ def test_paper_scene_bitwise_equal(scene):
 CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested"}
 
 
+def shm_entries() -> set[str]:
+    return set(os.listdir("/dev/shm")) if os.path.isdir("/dev/shm") else set()
+
+
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
 @pytest.mark.parametrize("mode", [1, 2, 3, 4], ids=["segfault", "hang", "abort", "error"])
-def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path, monkeypatch):
-    """c1 misbehaves from t = 0.5 s: the run stops there, rows up to the last macro step are kept."""
+def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_path, monkeypatch):
+    """c1 misbehaves from t = 0.5 s: the run stops there, rows up to the last macro step are kept
+    (readable by fmpy), and no process, shared-memory segment or temporary folder is left."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     sc = lags(2, params={"c1": {"mode": mode, "at_time": 0.5}})
     out = tmp_path / "out.csv"
     t0 = time.monotonic()
+    shm = shm_entries()
     with pytest.raises(SimulationError) as info:
-        api.run(sc, backend="parallel", output=out, step_timeout=0.5)
+        api.run(sc, backend=backend, output=out, step_timeout=0.5)
     assert time.monotonic() - t0 < 5
     e = info.value
     msg = str(e)
@@ -194,8 +203,10 @@ def test_failure_is_reported_with_component_time_and_cause(mode, tmp_path, monke
     assert "failed" in e.result.summary.stop_reason
     rows = out.read_text().splitlines()
     assert len(rows) == 1 + len(data)
-    assert list(tmp_path.glob("master-parallel-*")) == []  # the dead worker's extracted FMU too
+    assert np.array_equal(read_csv(str(out))["c0.y"], data["c0.y"])
+    assert list(tmp_path.glob("master-run-*")) == []  # the dead worker's extracted FMU too
     assert_no_children()
+    assert shm_entries() <= shm
 
 
 @pytest.mark.parametrize(
@@ -227,48 +238,99 @@ def test_exclusive_fmu_runs_twice_only_in_workers():
     assert_no_children()
 
 
-def long_run(tmp_path: Path) -> tuple[subprocess.Popen, list[psutil.Process], Path]:
-    """A parallel run of 1000 s in a child process; returns once its workers are busy."""
+def long_run(
+    tmp_path: Path, backend: str = "parallel"
+) -> tuple[subprocess.Popen, list[psutil.Process], Path]:
+    """A run of 1000 s in a child process; returns once its workers are busy."""
     script, out = tmp_path / "run.py", tmp_path / "out.csv"
     here, costly = str(Path(__file__).parent), "{'c0': {'cost_us': 200}, 'c1': {'cost_us': 200}}"
     script.write_text(
         f"import sys\nfrom fractions import Fraction\nsys.path.insert(0, {here!r})\n"
         "import test_parallel as t\nimport master.api as api\n"
         f"sc = t.lags(2, stop=Fraction(1000), params={costly})\n"
-        f"try:\n    api.run(sc, backend='parallel', output={str(out)!r})\n"
+        f"try:\n    api.run(sc, backend={backend!r}, output={str(out)!r})\n"
         "except api.SimulationError as e:\n    print('STOPPED', e, flush=True)\n"
     )
     env = {**os.environ, "TMPDIR": str(tmp_path)}  # what a killed master cannot remove stays in tmp_path
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
     ps = psutil.Process(proc.pid)
+    workers = 1 if backend == "serial" else 2
     deadline = time.monotonic() + 20
-    while len(ps.children()) < 3 and time.monotonic() < deadline:  # 2 workers + resource tracker
+    while len(ps.children()) < workers and time.monotonic() < deadline:
         time.sleep(0.1)
     time.sleep(0.5)  # let it compute some macro steps
     return proc, ps.children(recursive=True), out
 
 
-def test_sigint_stops_cleanly_with_partial_results(tmp_path):
-    """Ctrl-C on the master: message with the time, rows so far written, no worker left."""
-    proc, children, out = long_run(tmp_path)
-    assert len(children) >= 2
-    os.kill(proc.pid, signal.SIGINT)
+def assert_clean_stop(proc, children, out: Path, tmp_path: Path, said: str) -> None:
+    """The run said `said`, wrote fmpy-readable rows so far, and left no process and no temp folder."""
     stdout, _ = proc.communicate(timeout=20)
-    assert "STOPPED interrupted (SIGINT)" in stdout
-    assert len(out.read_text().splitlines()) > 10
-    assert list(tmp_path.glob("master-parallel-*")) == []  # extracted FMUs removed
+    assert said in stdout
+    data = read_csv(str(out))
+    assert len(data) > 10 and np.all(np.diff(data["time"]) > 0)
+    assert list(tmp_path.glob("master-run-*")) == []  # extracted FMUs removed
     gone, alive = psutil.wait_procs(children, timeout=3)
     assert alive == []
 
 
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["INT", "TERM", "HUP"])
+def test_signal_stops_cleanly_with_partial_results(tmp_path, backend, sig):
+    """Ctrl-C, SIGTERM or SIGHUP to the master: the signal named, rows so far written, no worker left."""
+    shm = shm_entries()
+    proc, children, out = long_run(tmp_path, backend)
+    assert len(children) >= 1
+    os.kill(proc.pid, sig)
+    assert_clean_stop(proc, children, out, tmp_path, f"STOPPED interrupted ({sig.name})")
+    assert shm_entries() <= shm
+
+
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+def test_killed_worker_is_reported_with_its_component(tmp_path, backend):
+    proc, children, out = long_run(tmp_path, backend)
+    victim = children[-1]
+    victim.kill()
+    assert_clean_stop(proc, children, out, tmp_path, "worker process killed by signal SIGKILL")
+
+
+def test_cli_exit_code_follows_the_signal(tmp_path):
+    """SIGTERM to `master run`: exit code 143 (128 + 15), the rows so far in the CSV file."""
+    out = tmp_path / "out.csv"
+    scene = REPO / "tests" / "scenarios" / "oscillator" / "oscillator.ssd"
+    cmd = [
+        sys.executable,
+        "-m",
+        "master",
+        "run",
+        str(scene),
+        "--stop-time",
+        "100000",
+        "-o",
+        str(out),
+        "--serial",
+    ]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 30
+    while not (out.exists() and out.stat().st_size > 10000) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 143, err
+    assert "interrupted (SIGTERM)" in err
+    assert len(read_csv(str(out))) > 100
+
+
 def test_workers_die_with_a_killed_master(tmp_path):
-    """SIGKILL to the master (no clean-up possible there): the workers still end (PR_SET_PDEATHSIG)."""
+    """SIGKILL to the master (no clean-up possible there): the workers still end (PR_SET_PDEATHSIG),
+    and nothing is left in /dev/shm (the shared memory is anonymous)."""
+    shm = shm_entries()
     proc, children, _ = long_run(tmp_path)
     assert len(children) >= 2
     proc.kill()
     proc.communicate(timeout=20)
     gone, alive = psutil.wait_procs(children, timeout=3)
     assert alive == []
+    assert shm_entries() <= shm
 
 
 def test_auto_picks_serial_for_cheap_and_parallel_for_heavy_scene():
@@ -284,28 +346,9 @@ def test_auto_picks_serial_for_cheap_and_parallel_for_heavy_scene():
     assert_no_children()
 
 
-@pytest.mark.parametrize("method", ["spawn", "forkserver"])
-def test_other_start_methods_give_the_same_bits(method):
-    """Under spawn/forkserver the plan and shared arrays travel pickled (by name) to the workers."""
-    from master.backends.driver import execute
-    from master.recorder import Recorder
-
-    sc = lags(3, ratios=[1, 3, 2], stop=Fraction(1, 2))
-    p = api.plan(sc)
-    be = ParallelBackend(p, start_method=method)
-    rec = Recorder(["time"] + [f"{c}.{v}" for c, v in p.record], None)
-    try:
-        be.open()
-        execute(p, be, rec)
-    finally:
-        be.close()
-    ref, got = api.run(sc, backend="serial").data, rec.data()
-    assert all(np.array_equal(ref[k], got[k]) for k in ref.dtype.names)
-    rec.discard()
-
-
 def test_backend_close_without_open_and_twice():
-    be = ParallelBackend(api.plan(lags(2)))
+    p = api.plan(lags(2))
+    be = WorkerBackend(p, worker_groups(p))
     be.close()
     be.open()
     be.close()

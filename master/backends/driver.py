@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Protocol
 
 from master.backends.component import SimulationError
@@ -25,6 +29,33 @@ class Backend(Protocol):
 
 
 BUDGET = 0.1  # s: the longest a backend runs before Python sees signals and shows progress
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where Python would raise KeyboardInterrupt for SIGINT."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextmanager
+def stop_signals() -> Iterator[None]:
+    """Within: SIGTERM and SIGHUP stop a run as Ctrl-C does (rows kept, workers stopped, the
+    SimulationError says which signal; exit code 128 + its number)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise Interrupted(signum)
+
+    old = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
 
 
 class Progress:
@@ -90,9 +121,11 @@ def execute(
         summary.stop_reason = f"failed: {e}"
         e.summary = summary  # type: ignore[attr-defined]
         raise
-    except KeyboardInterrupt:  # Ctrl-C: keep the rows so far, like any other stop
+    except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP: keep the rows so far, like any other stop
         t = plan.macro_clock.time(backend.position)
-        err = SimulationError(f"interrupted (SIGINT) at t={t}", "", t)
+        signum = getattr(e, "signum", signal.SIGINT)
+        err = SimulationError(f"interrupted ({signal.Signals(signum).name}) at t={t}", "", t)
+        err.signal = signum  # type: ignore[attr-defined]
         summary.stop_reason = f"failed: {err}"
         err.summary = summary  # type: ignore[attr-defined]
         raise err from None

@@ -8,6 +8,7 @@ worker process (master.backends.workers).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from master.backends.component import open_fmu, output_names
 from master.fmu import Fmu
@@ -35,7 +36,7 @@ class InProcessBackend:
         self.compiled = CompiledPlan(self.plan, self.fmus, outs, Memory(layout(self.plan, outs, 0)))
 
     def initialize(self, recorder: Recorder) -> None:
-        """Make inputs and outputs at the start time consistent (see `initialize`); record the
+        """Make inputs and outputs at the start time consistent (`initialize_sweeps`); record the
         row at the start time."""
         assert self.compiled is not None
         initialize(self.compiled, self.fmus)
@@ -79,21 +80,29 @@ class InProcessBackend:
 
 
 def initialize(cp: CompiledPlan, fmus: dict[str, Fmu]) -> None:
-    """Initial sweeps, exit of initialisation mode, divergence bounds and the row at the start time,
-    for the components of `fmus` (all of them: one process; several processes: see workers.py).
-
-    One sweep per component (set inputs from the sources' outputs, read own outputs) settles any
-    acyclic chain of direct feedthrough. Sweeps run in initialisation mode (for FMUs that compute
-    initial outputs there) and again after leaving it (for FMUs that compute them only on exit).
-    """
-    n = len(cp.names)
-    for _ in range(n):
-        for i in range(n):
-            cp.initial_sweep(i)
-    for name, fmu in fmus.items():
-        cp.exit_initialization(name, fmu)
-    for _ in range(n):
-        for i in range(n):
-            cp.initial_sweep(i)
+    """Initial sweeps around the exit of initialisation mode (`initialize_sweeps`), then the
+    divergence bounds and the row at the start time, all in this process."""
+    initialize_sweeps(
+        len(cp.names), cp.initial_sweep, lambda: [cp.exit_initialization(n, f) for n, f in fmus.items()]
+    )
     cp.set_bounds()
     cp.record_row(-1)
+
+
+def initialize_sweeps(
+    n: int, sweep: Callable[[int], None], exit_initialization: Callable[[], object]
+) -> None:
+    """Make inputs and outputs at the start time consistent: the sequence every backend follows.
+
+    One sweep per component (sweep(i): set component i's inputs from its sources' outputs, read
+    its own outputs) settles any acyclic chain of direct feedthrough among n components. Sweeps
+    run in initialisation mode (for FMUs that compute initial outputs there) and again after
+    leaving it (for FMUs that compute them only on exit).
+    """
+    for _ in range(n):
+        for i in range(n):
+            sweep(i)
+    exit_initialization()
+    for _ in range(n):
+        for i in range(n):
+            sweep(i)

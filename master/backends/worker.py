@@ -29,7 +29,7 @@ from typing import Protocol
 
 import numpy as np
 
-from master.backends.shm import SharedArrays
+from master.runtime.tables import Memory
 
 STOP = -1  # op: leave the loop
 NOP = 0  # op: do nothing (measures the synchronisation cost)
@@ -56,14 +56,23 @@ class Task(Protocol):
 class WorkerFailure(RuntimeError):
     """A worker failed: `component` (name or None), `cause`; `time` (s) if the failing code said.
 
-    raised: the task raised an exception whose message is `cause` (else: crash or hang).
+    raised: the task raised an exception whose message is `cause` (else: crash or hang);
+    variable: the variable it named, if any.
     """
 
-    def __init__(self, component: str | None, cause: str, time: float | None = None, raised: bool = False):
+    def __init__(
+        self,
+        component: str | None,
+        cause: str,
+        time: float | None = None,
+        raised: bool = False,
+        variable: str | None = None,
+    ):
         self.component = component
         self.cause = cause
         self.time = time
         self.raised = raised
+        self.variable = variable
         where = f"component '{component}'" if component else "a worker"
         super().__init__(f"{where}: {cause}")
 
@@ -82,7 +91,7 @@ def _die_with_parent(parent: int | None) -> None:
 def _worker_main(
     index: int,
     factory: Callable[[], Task],
-    control: SharedArrays,
+    control: Memory,
     go,
     done,
     parent: int | None,
@@ -121,7 +130,8 @@ def _worker_main(
             done.release()
     except BaseException as e:  # report, then end: the master decides what happens next
         text = str(e) if str(e) else "".join(traceback.format_exception_only(e)).strip()
-        raw = text.encode("utf-8", "replace")[: MSG_BYTES - 1]
+        variable = getattr(e, "variable", None)
+        raw = f"{variable or ''}\0{text}".encode("utf-8", "replace")[: MSG_BYTES - 1]
         msg[: len(raw)] = np.frombuffer(raw, dtype=np.uint8)
         msg[len(raw)] = 0
         t = getattr(e, "time", None)
@@ -167,41 +177,44 @@ def _signal_name(exitcode: int) -> str:
 
 
 class WorkerPool:
-    """Worker processes, each running one task, stepped in lock-step by the master.
+    """Worker processes, each running one task on the master's commands.
 
-    tasks: (component names, factory) per worker; the factory runs in the worker process and
-    must be picklable under the spawn/forkserver start methods.  Times are in seconds:
-    `step_timeout` bounds each command, `setup_timeout` the start-up.
+    tasks: (component names, factory) per worker; the factory runs in the worker process.
+    Workers are forked, so that they inherit anonymous shared memory (no name in /dev/shm to
+    leave behind). Times are in seconds: `step_timeout` bounds each command unless a supervisor
+    watches it (see `run`), `setup_timeout` the start-up.
     """
 
     def __init__(
         self,
         tasks: Sequence[tuple[Sequence[str], Callable[[], Task]]],
-        start_method: str = "fork",
         step_timeout: float = 10.0,
         setup_timeout: float = 60.0,
     ):
         self.names = [list(names) for names, _ in tasks]
         self.step_timeout = step_timeout
         self.setup_timeout = setup_timeout
-        ctx = mp.get_context(start_method)
+        ctx = mp.get_context("fork")
         w = len(tasks)
-        self.control = SharedArrays(
+        self.control = Memory(
             {
                 "cmd": ((3,), "int64"),
                 "err_time": ((w,), "float64"),
                 "state": ((w,), "int64"),
                 "where": ((w,), "int64"),
                 "msg": ((w, MSG_BYTES), "uint8"),
-            }
+            },
+            shared=True,
         )
         self.go = [ctx.Semaphore(0) for _ in range(w)]
         self.done = [ctx.Semaphore(0) for _ in range(w)]
         self.procs: list = []
         self.closed = False
         self.last_wait = 0.0  # s: how long the master waited for the previous command
+        self.pending: list[int] = []  # workers yet to answer the last command
+        self.started = 0.0  # time.monotonic() at which the last command was sent
         try:
-            parent = None if start_method == "forkserver" else os.getpid()  # forkserver: its server forks
+            parent = os.getpid()
             spin = SPIN_S if w <= cpu_count() else 0.0  # pollers must not take processors from workers
             for i, (_, factory) in enumerate(tasks):
                 p = ctx.Process(
@@ -212,46 +225,75 @@ class WorkerPool:
                 )
                 p.start()
                 self.procs.append(p)
-            self._wait(range(w), self.setup_timeout)
+            self.pending, self.started = list(range(w)), time.monotonic()
+            self.wait(timeout=self.setup_timeout)
         except BaseException:
             self.close()
             raise
 
     def run(self, op: int, a: int = 0, b: int = 0, workers: Sequence[int] | None = None) -> None:
         """Run command (op, a, b) in `workers` (default: all) and wait until each has finished."""
+        self.start(op, a, b, workers)
+        self.wait()
+
+    def start(self, op: int, a: int = 0, b: int = 0, workers: Sequence[int] | None = None) -> None:
+        """Send command (op, a, b) to `workers` (default: all); `wait` collects their answers."""
         if self.closed:
             raise RuntimeError("worker pool is closed")
         cmd = self.control["cmd"]
         cmd[0], cmd[1], cmd[2] = op, a, b
-        ids = range(len(self.procs)) if workers is None else workers
-        for i in ids:
+        self.pending = list(range(len(self.procs)) if workers is None else workers)
+        self.started = time.monotonic()
+        for i in self.pending:
             self.go[i].release()
-        self._wait(ids, self.step_timeout)
 
-    def _wait(self, ids: Sequence[int], timeout: float) -> None:
-        """Collect the `done` of workers `ids`; raise WorkerFailure on a crash, an error or a hang.
+    def wait(
+        self, supervise: Callable[[], float] | None = None, budget: float = 0.0, timeout: float | None = None
+    ) -> bool:
+        """Collect the answers to the last command; True once every worker has answered.
 
+        Raises WorkerFailure on a crash, an error or a hang. Without `supervise`, a command taking
+        longer than the step timeout is a hang; with it, `supervise()` is called between polls
+        instead (it may raise, e.g. for a hang it detects, and returns the seconds until it wants
+        to be called again). budget > 0: return False after about that many seconds. timeout:
+        instead of the step timeout.
         After a short previous wait the master polls first (waking a sleeping process costs tens
         of microseconds); after a long one it sleeps at once, leaving the processors to the workers.
         """
         t0 = time.perf_counter()
+        end = t0 + budget if budget > 0 else float("inf")
         spin = SPIN_S if self.last_wait < SPIN_S else 0.0
-        deadline = time.monotonic() + timeout
+        timeout = self.step_timeout if timeout is None else timeout
+        deadline = self.started + timeout
         poll = min(POLL_S, timeout)
-        for i in ids:
+        while self.pending:
+            i = self.pending[0]
             sem = self.done[i]
             got = False
             if spin:
-                end = t0 + spin
-                while not (got := sem.acquire(False)) and time.perf_counter() < end:
+                while not (got := sem.acquire(False)) and time.perf_counter() < t0 + spin:
                     os.sched_yield()
-            while not got and not sem.acquire(timeout=poll):
+            while not got and not (got := sem.acquire(timeout=poll)):
                 self._check_alive()
-                if time.monotonic() > deadline:
+                if supervise is not None:
+                    poll = supervise()
+                elif time.monotonic() > deadline:
                     self.procs[i].kill()  # a hung FMU never returns to read the stop command
-                    raise self._failure(i, f"hang: no answer within the step timeout of {timeout:g} s")
+                    raise self._failure(
+                        i, f"hang: no answer within the step timeout of {self.step_timeout:g} s"
+                    )
+                if time.perf_counter() > end:
+                    break
+            if not got:
+                return False
+            self.pending.pop(0)
             self._check(i)
         self.last_wait = time.perf_counter() - t0
+        return True
+
+    def kill(self, i: int) -> None:
+        """SIGKILL worker i (a hung FMU never returns to read the stop command)."""
+        self.procs[i].kill()
 
     def _check_alive(self) -> None:
         for j, p in enumerate(self.procs):
@@ -263,11 +305,15 @@ class WorkerPool:
     def _check(self, i: int) -> None:
         if self.control["state"][i] == FAILED:
             t = float(self.control["err_time"][i])
-            raise self._failure(i, self._message(i), None if np.isnan(t) else t, raised=True)
+            variable, message = self._message(i)
+            raise WorkerFailure(
+                self._component(i), message, None if np.isnan(t) else t, True, variable or None
+            )
 
-    def _message(self, i: int) -> str:
-        raw = bytes(self.control["msg"][i])
-        return raw.split(b"\0", 1)[0].decode("utf-8", "replace")
+    def _message(self, i: int) -> tuple[str, str]:
+        """(variable or "", message) a failed worker reported."""
+        variable, message = bytes(self.control["msg"][i]).split(b"\0")[:2]
+        return variable.decode("utf-8", "replace"), message.decode("utf-8", "replace")
 
     def _component(self, i: int) -> str | None:
         names = self.names[i]
@@ -282,8 +328,7 @@ class WorkerPool:
         if self.closed:
             return
         self.closed = True
-        if "cmd" in self.control.arrays:
-            self.control["cmd"][0] = STOP
+        self.control["cmd"][0] = STOP
         for g in self.go:
             g.release()
         deadline = time.monotonic() + 2.0
@@ -296,7 +341,6 @@ class WorkerPool:
         for p in self.procs:
             if p.exitcode is not None:
                 p.close()
-        self.control.unlink()
 
     def __enter__(self) -> WorkerPool:
         return self

@@ -121,6 +121,8 @@ static int32_t barrier(mk_kernel *k) {
     return wait_for(k, k->shared->barrier, target) ? aborted(k) : MK_DONE;
 }
 
+void mk_publish(mk_counter *c, int64_t value) { publish(c, value); }
+
 void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
     publish(s->cancel, 1);
     for (int32_t i = 0; i < n_components; i++) {

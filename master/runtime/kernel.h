@@ -203,6 +203,8 @@ int32_t mk_record_row(mk_kernel *k, int64_t n);
 /* Step macro steps n_from .. n_to - 1 (fewer on a return other than MK_DONE); *n_next: the first
  * macro step not done. budget_s > 0: return MK_YIELD once that much wall time has passed. */
 int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next);
+/* Set a counter and wake its waiters (the supervisor draining the results ring). */
+void mk_publish(mk_counter *c, int64_t value);
 /* Raise the cancel flag and wake every waiter (a supervisor stopping the run). */
 void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers);
 

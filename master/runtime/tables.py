@@ -125,6 +125,7 @@ def layout(
     out["cancel"] = ((1, counter), "uint8")
     out["busy"] = ((nw, 8), "int64")  # one cache line per worker
     out["pacing"] = ((nw, pacing), "uint8")
+    out["pace"] = ((2,), "float64")  # real-time factor (0: unpaced), clock origin (ns)
     out["steps"] = ((nc,), "int64")
     out["fmu_time"] = ((nc,), "float64")
     return out

@@ -1,0 +1,282 @@
+"""Worker backend: every FMU outside the master process, the kernel stepping in the workers.
+
+Serial is one worker running the whole plan; parallel is one worker per component or scenario
+group. Workers are forked after the master has mapped one block of anonymous shared memory
+(master.runtime.tables.layout): the output histories, the synchronisation counters, the results
+ring. During the run the workers synchronise with each other through the counters (dataflow:
+each waits only for the producers of the samples it reads, see kernel.c); the master is not on
+the per-step path: it drains completed rows from the ring to the recorder, watches for dead or
+hung workers and for signals, and sleeps in between.
+
+A worker that crashes (segfault, abort), hangs past the step timeout, or stops on an FMU error,
+a NaN/Inf or a diverging output ends the run with one SimulationError naming the component, the
+simulation time and the cause; the others are cancelled, every completed row is written and no
+process is left behind (workers also die with the master, PR_SET_PDEATHSIG). Times in seconds.
+"""
+
+from __future__ import annotations
+
+import ctypes as C
+import shutil
+import tempfile
+import time
+from functools import partial
+
+import numpy as np
+
+from master.backends.component import SimulationError, open_fmu, output_names
+from master.backends.in_process import initialize_sweeps
+from master.backends.worker import WorkerFailure, WorkerPool
+from master.fmu import Fmu, FmuError, read_description, variables_of
+from master.recorder import Recorder
+from master.runtime import native
+from master.runtime.tables import CompiledPlan, Memory, counter, layout, pacing_stats, ring_rows, shared_view
+from master.schedule import Plan
+
+OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN = range(1, 5)
+DEFAULT_STEP_TIMEOUT = 10.0  # s: one component's macro step taking longer than this is a hang
+ROW_CAPACITY = 16384  # rows of the results ring the master drains
+
+
+def worker_groups(plan: Plan) -> list[list[str]]:
+    """Component names per worker, in stepping order: one worker per scenario group or lone component."""
+    groups: dict[str, list[str]] = {}
+    for pc in plan.components:
+        g = plan.scenario.component(pc.name).group
+        groups.setdefault(f"group:{g}" if g else f"component:{pc.name}", []).append(pc.name)
+    return list(groups.values())
+
+
+class _Task:
+    """The components of one worker, opened and compiled in the worker process."""
+
+    def __init__(self, plan: Plan, names: list[str], outs: dict, memory: Memory, worker: int, n_workers: int):
+        self.plan = plan
+        self.components = names
+        self.outs = outs
+        self.memory = memory
+        self.worker = worker
+        self.n_workers = n_workers
+        self.fmus: dict[str, Fmu] = {}
+        self.cp: CompiledPlan | None = None
+
+    def setup(self, where: np.ndarray) -> None:
+        sc = self.plan.scenario
+        for i, name in enumerate(self.components):
+            where[0] = i
+            self.fmus[name] = open_fmu(sc, sc.component(name))
+        self.cp = CompiledPlan(self.plan, self.fmus, self.outs, self.memory, self.worker, self.n_workers)
+
+    def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
+        """OP_SWEEP a: initial sweep of component a (plan index) if it is here. OP_EXIT_INIT: leave
+        initialisation mode. OP_FINISH_INIT: divergence bounds, this worker's columns of the row at
+        the start time. OP_RUN a b: macro steps a .. b - 1, paced if the master says so."""
+        cp = self.cp
+        assert cp is not None
+        try:
+            if op == OP_SWEEP and cp.names[a] in self.fmus:
+                where[0] = self.components.index(cp.names[a])
+                cp.initial_sweep(a)
+            elif op == OP_EXIT_INIT:
+                for i, (name, fmu) in enumerate(self.fmus.items()):
+                    where[0] = i
+                    cp.exit_initialization(name, fmu)
+            elif op == OP_FINISH_INIT:
+                cp.set_bounds()
+                cp.record_row(-1)
+            elif op == OP_RUN:
+                factor, origin = self.memory["pace"]
+                if factor > 0:
+                    cp.pace(float(factor), int(origin), a)
+                cp.run(a, b)
+        except SimulationError as e:
+            if cp.kernel.error.code == native.ABORTED:
+                return  # another worker failed or the master cancelled: it reports why
+            if e.component in self.components:
+                where[0] = self.components.index(e.component)
+            cp.lib.mk_cancel(cp.kernel.shared, len(cp.names), self.n_workers)
+            raise
+
+    def close(self) -> None:
+        for f in self.fmus.values():
+            f.close()
+
+
+class WorkerBackend:
+    """Executes a Plan in worker processes (see the module docstring).
+
+    groups: component names per worker (one group with all components: the serial backend).
+    Use: `open()`, `initialize(recorder)`, `run(...)` ..., `close()`.
+    """
+
+    def __init__(self, plan: Plan, groups: list[list[str]], step_timeout: float = DEFAULT_STEP_TIMEOUT):
+        self.plan = plan
+        self.groups = groups
+        self.name = "serial" if len(groups) == 1 else "parallel"
+        self.step_timeout = step_timeout
+        self.names = [pc.name for pc in plan.components]
+        self.worker_of = {name: w for w, names in enumerate(groups) for name in names}
+        self.memory: Memory | None = None
+        self.pool: WorkerPool | None = None
+        self.tmp: str | None = None
+        self.lib = native.library()
+        self.position = 0  # macro steps every component has completed
+        self.drained = 0  # rows taken out of the ring
+        self.running = False
+        self.recorder: Recorder | None = None
+        self._rate = (time.perf_counter(), 0)  # (when, rows drained then): the drain period follows the rate
+
+    def open(self) -> None:
+        """Map the shared memory, start the workers; each loads and parameterises its FMUs."""
+        sc = self.plan.scenario
+        outs = {
+            pc.name: output_names(
+                self.plan, pc.name, variables_of(read_description(sc.component(pc.name).fmu_path))
+            )
+            for pc in self.plan.components
+        }
+        self.memory = Memory(layout(self.plan, outs, len(self.groups), ROW_CAPACITY), shared=True)
+        self.tmp = tempfile.mkdtemp(prefix="master-run-")
+        tasks = [
+            (names, partial(_Task, self.plan, names, outs, self.memory, w, len(self.groups)))
+            for w, names in enumerate(self.groups)
+        ]
+        old_tmp, tempfile.tempdir = tempfile.tempdir, self.tmp  # FMUs extract where close() cleans up
+        try:
+            self.pool = WorkerPool(tasks, step_timeout=self.step_timeout)
+        except WorkerFailure as e:  # loading is not simulating: as in-process, an FmuError
+            raise FmuError(
+                e.cause if e.raised else f"component {e.component}: {e.cause} while loading"
+            ) from None
+        finally:
+            tempfile.tempdir = old_tmp
+
+    # -- initialisation ------------------------------------------------------------------------
+    def initialize(self, recorder: Recorder) -> None:
+        """The in-process initialisation (master.backends.in_process.initialize), component by
+        component in the worker that holds it; records the row at the start time."""
+        assert self.pool is not None
+        t0 = float(self.plan.scenario.start_time)
+        try:
+            initialize_sweeps(len(self.names), self._sweep, lambda: self.pool.run(OP_EXIT_INIT))
+            self.pool.run(OP_FINISH_INIT)
+        except WorkerFailure as e:
+            raise self._error(e, t0, "during initialisation") from None
+        self._drain(recorder)
+
+    def _sweep(self, i: int) -> None:
+        assert self.pool is not None
+        self.pool.run(OP_SWEEP, i, 0, [self.worker_of[self.names[i]]])
+
+    # -- running -------------------------------------------------------------------------------
+    def pace(self, factor: float) -> None:
+        """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
+        if not factor > 0:
+            raise ValueError(f"real-time factor must be positive, got {factor}")
+        assert self.memory is not None
+        self.memory["pace"][:] = factor, 0.0
+
+    def run(self, n_from: int, n_to: int, recorder: Recorder, budget: float = 0.0) -> int:
+        """Step macro steps n_from .. n_to - 1 in the workers, returning after about `budget` s (0:
+        at the end) with the next macro step every component still has to do; completed rows go
+        to `recorder`, also on a failure."""
+        assert self.pool is not None and self.memory is not None
+        self.recorder = recorder
+        if not self.running:
+            pace = self.memory["pace"]
+            if pace[0] > 0:
+                pace[1] = float(time.monotonic_ns() + 1_000_000)  # every worker's frames from one origin
+            self.pool.start(OP_RUN, n_from, n_to)
+            self.running = True
+        try:
+            finished = self.pool.wait(self._supervise, budget)
+        except WorkerFailure as e:
+            self.cancel()
+            self._drain(recorder)
+            raise self._error(e, self.plan.macro_clock.time(self.position), self._span()) from None
+        except BaseException:  # Ctrl-C, SIGTERM: stop the workers, keep every completed row
+            self.cancel()
+            self._drain(recorder)
+            raise
+        self._drain(recorder)
+        if finished:
+            self.running = False
+            return n_to
+        return min(self.position, n_to - 1)  # not done until the workers have answered
+
+    def _supervise(self) -> float:
+        """Between polls of the workers: drain rows, look for a hang. Returns the seconds until
+        the next call: short enough that the ring stays at most a quarter full."""
+        assert self.memory is not None and self.pool is not None
+        if self.recorder is not None:
+            self._drain(self.recorder)
+        busy = self.memory["busy"]
+        now = time.monotonic_ns()
+        for w in range(len(self.groups)):
+            since = int(busy[w, 0])
+            if since and (now - since) * 1e-9 > self.step_timeout:
+                comp = self.names[int(busy[w, 1])]
+                self.pool.kill(w)
+                raise WorkerFailure(
+                    comp, f"hang: a macro step took longer than the step timeout of {self.step_timeout:g} s"
+                )
+        t_then, rows_then = self._rate
+        t = time.perf_counter()
+        rate = (self.drained - rows_then) / max(t - t_then, 1e-6)
+        self._rate = (t, self.drained)
+        return min(0.02, max(1e-3, 0.25 * ROW_CAPACITY / rate if rate > 0 else 0.02))
+
+    def _drain(self, recorder: Recorder) -> None:
+        """Move the rows every worker has completed from the ring to the recorder."""
+        assert self.memory is not None
+        done = min(counter(self.memory, "rows_written", w).value for w in range(len(self.groups)))
+        if done > self.drained:
+            recorder.write(ring_rows(self.memory["rows"], self.drained, done))
+            self.drained = done
+            self.lib.mk_publish(counter(self.memory, "rows_drained"), done)
+        self.position = min(counter(self.memory, "published", i).value for i in range(len(self.names)))
+
+    def cancel(self) -> None:
+        """Make every worker stop at its next wait or macro step."""
+        if self.memory is not None and self.running:
+            shared = shared_view(self.memory, 0, len(self.groups))
+            self.lib.mk_cancel(C.byref(shared), len(self.names), len(self.groups))
+            self.running = False
+
+    def _span(self) -> str:
+        clock = self.plan.macro_clock
+        return f"in the macro step from t={clock.time(self.position)} to t={clock.time(self.position + 1)}"
+
+    def _error(self, e: WorkerFailure, t: float, when: str) -> SimulationError:
+        """A SimulationError from a worker failure; the worker's own message if it raised one."""
+        comp = e.component or "?"
+        if e.raised:  # the kernel or the FMU layer said what happened (and when)
+            return SimulationError(e.cause, comp, t if e.time is None else e.time, e.variable)
+        return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
+
+    def pacing(self) -> dict | None:
+        """Real-time statistics over every worker's frames (see `pacing_stats`), None when unpaced."""
+        if self.memory is None:
+            return None
+        return pacing_stats([native.Pacing.from_buffer(p) for p in self.memory["pacing"]])
+
+    def stats(self) -> tuple[dict[str, int], dict[str, float]]:
+        """(communication steps, wall time inside FMI calls in s) per component."""
+        if self.memory is None:
+            return {n: 0 for n in self.names}, {n: 0.0 for n in self.names}
+        steps, ft = self.memory["steps"], self.memory["fmu_time"]
+        return {n: int(steps[i]) for i, n in enumerate(self.names)}, {
+            n: float(ft[i]) for i, n in enumerate(self.names)
+        }
+
+    def close(self) -> None:
+        """Stop the workers (killing any that do not stop), remove the extracted FMUs."""
+        try:
+            self.cancel()
+            if self.pool is not None:
+                self.pool.close()
+        finally:
+            self.pool = None
+            if self.tmp is not None:
+                shutil.rmtree(self.tmp, ignore_errors=True)
+                self.tmp = None
