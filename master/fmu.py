@@ -146,6 +146,27 @@ def safe_extract(path: Path, dest: Path) -> Path:
     return dest
 
 
+# FMI 2 log messages reach the instance through its componentEnvironment: one logger serves all,
+# which fmpy's message-formatting proxy (one per process) needs
+_LOGGING: dict[int, Fmu] = {}
+_LOGGER = None
+
+
+def _fmi2_log(env, instance, status, category, message) -> None:
+    fmu = _LOGGING.get(env or 0)
+    if fmu is not None:
+        fmu.last_log = message.decode("utf-8", "replace") if message else ""
+
+
+def _fmi2_logger():
+    global _LOGGER
+    if _LOGGER is None:
+        from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+        _LOGGER = fmi2CallbackLoggerTYPE(_fmi2_log)
+    return _LOGGER
+
+
 class RealPort:
     """A prepared vector of Real variables: one FMI call moves all values.
 
@@ -209,6 +230,8 @@ class Fmu:
         self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
         self.slave = None
         self._instantiated = False
+        self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
+        _LOGGING[self._log_key] = self
         try:
             safe_extract(self.path, self.dir)
             self._load()
@@ -237,14 +260,21 @@ class Fmu:
                     fmi2CallbackAllocateMemoryTYPE,
                     fmi2CallbackFreeMemoryTYPE,
                     fmi2CallbackFunctions,
-                    fmi2CallbackLoggerTYPE,
                 )
 
                 self.slave = FMU2Slave(**kw)
                 cb = fmi2CallbackFunctions()
-                cb.logger = fmi2CallbackLoggerTYPE(self._log2)
+                cb.logger = _fmi2_logger()
+                cb.componentEnvironment = ctypes.c_void_p(self._log_key)
                 cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
                 cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+                try:  # fmpy's native proxy formats the message with its variadic arguments
+                    from fmpy.logging import addLoggerProxy
+
+                    addLoggerProxy(ctypes.byref(cb))
+                except (ImportError, OSError, AttributeError):
+                    pass  # messages then keep their printf placeholders
+                self._callbacks = cb  # the FMU keeps the pointer: the structure must live as long
                 self.slave.instantiate(callbacks=cb)
             self._instantiated = True
             self._bind_raw()
@@ -253,8 +283,6 @@ class Fmu:
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
 
-    def _log2(self, env, instance, status, category, message) -> None:
-        self.last_log = message.decode("utf-8", "replace") if message else ""
 
     def _log3(self, env, status, category, message) -> None:
         self.last_log = message.decode("utf-8", "replace") if message else ""
@@ -441,5 +469,6 @@ class Fmu:
                     s.freeLibrary()
                 except Exception:
                     pass
+        _LOGGING.pop(self._log_key, None)
         if self._own_dir and self.dir.exists():
             shutil.rmtree(self.dir, ignore_errors=True)

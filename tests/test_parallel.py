@@ -171,7 +171,7 @@ def test_paper_scene_bitwise_equal(scene):
 
 # -- failures ------------------------------------------------------------------------------------
 
-CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested"}
+CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested at t = 0.5"}  # formatted
 
 
 def shm_entries() -> set[str]:
