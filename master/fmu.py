@@ -283,7 +283,6 @@ class Fmu:
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
 
-
     def _log3(self, env, status, category, message) -> None:
         self.last_log = message.decode("utf-8", "replace") if message else ""
 

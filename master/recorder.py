@@ -94,11 +94,12 @@ class RunSummary:
     backend: str
     stop_reason: str  # "finished" or the error message
     simulated_time: float
-    wall_time: float
+    wall_time: float  # initialisation and stepping (loading the FMUs not included)
     macro_steps: int
     steps: dict[str, int] = field(default_factory=dict)  # communication steps per component
     fmu_time: dict[str, float] = field(default_factory=dict)  # wall time inside FMI calls
     rows: int = 0
+    stepping_time: float = 0.0  # s of wall time in the macro-step loop alone
     overruns: int | None = None  # --real-time only: macro steps that ended late
     worst_lateness: float | None = None  # s
     idle_time: float = 0.0  # s waiting for the wall clock (--real-time), not overhead

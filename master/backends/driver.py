@@ -107,10 +107,12 @@ def execute(
         if real_time:
             backend.pace(real_time)
         n = 0
+        loop0 = time.perf_counter()
         while n < plan.n_macro:
             n = backend.run(n, plan.n_macro, recorder, BUDGET)
             if bar is not None:
                 bar.update(n)
+        summary.stepping_time = time.perf_counter() - loop0
         pacing = backend.pacing()
         if pacing is not None:
             summary.overruns = pacing["overruns"]
