@@ -26,11 +26,20 @@ import numpy as np
 
 from master.backends.component import SimulationError, open_fmu, output_names
 from master.backends.in_process import initialize_sweeps
-from master.backends.worker import WorkerFailure, WorkerPool
+from master.backends.worker import WorkerFailure, WorkerPool, cpu_count
 from master.fmu import Fmu, FmuError, read_description, variables_of
 from master.recorder import Recorder
 from master.runtime import native
-from master.runtime.tables import CompiledPlan, Memory, counter, layout, pacing_stats, ring_rows, shared_view
+from master.runtime.tables import (
+    SPIN_S,
+    CompiledPlan,
+    Memory,
+    counter,
+    layout,
+    pacing_stats,
+    ring_rows,
+    shared_view,
+)
 from master.schedule import Plan
 
 OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN = range(1, 5)
@@ -65,7 +74,10 @@ class _Task:
         for i, name in enumerate(self.components):
             where[0] = i
             self.fmus[name] = open_fmu(sc, sc.component(name))
-        self.cp = CompiledPlan(self.plan, self.fmus, self.outs, self.memory, self.worker, self.n_workers)
+        spin = SPIN_S if self.n_workers <= cpu_count() else 0.0  # a spinner must not take a peer's CPU
+        self.cp = CompiledPlan(
+            self.plan, self.fmus, self.outs, self.memory, self.worker, self.n_workers, spin
+        )
 
     def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
         """OP_SWEEP a: initial sweep of component a (plan index) if it is here. OP_EXIT_INIT: leave

@@ -9,6 +9,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <string.h>
+#include <sched.h>
 #include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
@@ -66,6 +67,8 @@ static int32_t fail(mk_kernel *k, int32_t code, int32_t comp, int32_t call, int3
 
 /* -- synchronisation between processes ----------------------------------------------------------- */
 
+#define BUSY_SPIN_NS 5000 /* a waiter polls without yielding this long */
+
 static int64_t load(const mk_counter *c) { return __atomic_load_n(&c->value, __ATOMIC_SEQ_CST); }
 
 static void futex(mk_counter *c, int op, int32_t value, const struct timespec *timeout) {
@@ -85,17 +88,20 @@ static int64_t advance(mk_counter *c, int64_t by) {
     return v;
 }
 
-/* Wait until c >= target: spin for spin_ns, then sleep in the futex (waking every 10 ms to see
- * the cancel flag). MK_ABORTED if the run is cancelled meanwhile. */
+/* Wait until c >= target: spin for spin_ns (yielding after BUSY_SPIN_NS), then sleep in the futex
+ * (waking every 10 ms to see the cancel flag). MK_ABORTED if the run is cancelled meanwhile. */
 static int32_t wait_for(mk_kernel *k, mk_counter *c, int64_t target) {
     mk_shared *sh = k->shared;
     if (load(c) >= target) return MK_DONE;
-    int64_t spin_end = now_ns() + sh->spin_ns;
-    while (now_ns() < spin_end) {
+    int64_t t = now_ns(), spin_end = t + sh->spin_ns, busy_end = t + BUSY_SPIN_NS;
+    while ((t = now_ns()) < spin_end) {
         for (int i = 0; i < 64; i++) {
             if (load(c) >= target) return MK_DONE;
             __builtin_ia32_pause();
         }
+        /* after a few microseconds, yield between polls: should the producer share this
+         * processor, it runs now instead of after the spin */
+        if (t > busy_end) sched_yield();
     }
     const struct timespec tick = {0, 10000000};
     for (;;) {

@@ -30,7 +30,7 @@ from master.schedule import Link, Plan, PlanComponent
 EXACT = 2**53  # clock integers beyond this would not convert to float exactly
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
-SPIN_S = 50e-6  # s a waiting worker spins before it sleeps in a futex
+SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking one costs ~50-100 us)
 
 Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
 
@@ -137,7 +137,8 @@ class CompiledPlan:
     fmus: the opened FMUs (in initialisation mode) of the components this process steps, by name;
     outs: the output names of every component (`output_names`); memory: arrays of `layout`, private
     or shared with the other workers; worker, n_workers: this process's place (n_workers = 0: the
-    only process, Python drains the results ring itself).
+    only process, Python drains the results ring itself); spin: s a waiting worker spins before
+    it sleeps (0 where workers outnumber the processors: a spinner would take one from a peer).
     """
 
     def __init__(
@@ -148,6 +149,7 @@ class CompiledPlan:
         memory: Memory,
         worker: int = 0,
         n_workers: int = 0,
+        spin: float = SPIN_S,
     ):
         self.plan = plan
         self.lib = native.library()
@@ -185,7 +187,7 @@ class CompiledPlan:
         self.pacing = native.Pacing.from_buffer(memory["pacing"][worker])
         k.pacing = C.pointer(self.pacing)
         if n_workers:
-            k.shared = C.pointer(shared_view(memory, worker, n_workers))
+            k.shared = C.pointer(shared_view(memory, worker, n_workers, spin))
         self._keep += [records]
         self.kernel = k
         self.ref = C.byref(k)
