@@ -70,6 +70,7 @@ class _Task:
         self.cp: CompiledPlan | None = None
 
     def setup(self, where: np.ndarray) -> None:
+        self.memory.touch()
         sc = self.plan.scenario
         for i, name in enumerate(self.components):
             where[0] = i

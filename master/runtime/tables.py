@@ -480,6 +480,7 @@ class Memory:
             nbytes = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
             size += -(-max(nbytes, 1) // ALIGN) * ALIGN
         self.buffer = mmap.mmap(-1, max(size, ALIGN)) if shared else bytearray(max(size, ALIGN))
+        self.touch()
         self.arrays = {
             name: np.ndarray(shape, dtype=dtype, buffer=self.buffer, offset=offsets[name])
             for name, (shape, dtype) in layout.items()
@@ -487,3 +488,8 @@ class Memory:
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.arrays[name]
+
+    def touch(self) -> None:
+        """Map every page into this process now (a forked worker calls it once too): page faults
+        on the stepping path and in the master's drain cost up to a millisecond per run."""
+        np.frombuffer(self.buffer, dtype=np.uint8)[::4096].sum()
