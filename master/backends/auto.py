@@ -48,9 +48,13 @@ def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[flo
         setup = time.perf_counter() - t0
         n1 = min(n0 + TRIAL_STEPS, plan.n_macro)
         t0 = time.perf_counter()
-        n = be.run(n0, n1, rec, TRIAL_BUDGET)
-        stepped = time.perf_counter() - t0
-        return setup, stepped / max(n - n0, 1)
+        while (time.perf_counter() - t0 < TRIAL_BUDGET or n == n0) and n < n1:
+            n = be.run(n, n1, rec, TRIAL_BUDGET)
+        if n < n1:  # the budget ran out: stop, and count what was done
+            be.cancel()
+            be.pool.wait()
+            n = be.position
+        return setup, be.stepping_span() / max(n - n0, 1)
     finally:
         be.close()
         rec.discard()

@@ -32,6 +32,7 @@ from master.recorder import Recorder
 from master.runtime import native
 from master.runtime.tables import (
     SPIN_S,
+    Cancelled,
     CompiledPlan,
     Memory,
     counter,
@@ -101,10 +102,15 @@ class _Task:
                 factor, origin = self.memory["pace"]
                 if factor > 0:
                     cp.pace(float(factor), int(origin), a)
-                cp.run(a, b)
+                span = self.memory["span"][self.worker]
+                span[0] = time.monotonic_ns()
+                try:
+                    cp.run(a, b)
+                finally:
+                    span[1] = time.monotonic_ns()
+        except Cancelled:
+            return  # another worker failed or the master cancelled: they say why
         except SimulationError as e:
-            if cp.kernel.error.code == native.ABORTED:
-                return  # another worker failed or the master cancelled: it reports why
             if e.component in self.components:
                 where[0] = self.components.index(e.component)
             cp.lib.mk_cancel(cp.kernel.shared, len(cp.names), self.n_workers)
@@ -266,6 +272,13 @@ class WorkerBackend:
         if e.raised:  # the kernel or the FMU layer said what happened (and when)
             return SimulationError(e.cause, comp, t if e.time is None else e.time, e.variable)
         return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
+
+    def stepping_span(self) -> float:
+        """s from the first worker's start to the last worker's end of the last run command: the
+        stepping alone, without the command's trip to the workers and back."""
+        assert self.memory is not None
+        span = self.memory["span"][: len(self.groups)]
+        return float(span[:, 1].max() - span[:, 0].min()) * 1e-9
 
     def pacing(self) -> dict | None:
         """Real-time statistics over every worker's frames (see `pacing_stats`), None when unpaced."""

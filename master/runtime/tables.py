@@ -47,6 +47,10 @@ FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used wit
 }
 
 
+class Cancelled(Exception):
+    """Another worker failed or the supervisor stopped the run: this worker has nothing to report."""
+
+
 def _ptr(a: np.ndarray, ctype):
     return a.ctypes.data_as(C.POINTER(ctype))
 
@@ -124,6 +128,7 @@ def layout(
     out["rows_drained"] = ((1, counter), "uint8")
     out["cancel"] = ((1, counter), "uint8")
     out["busy"] = ((nw, 8), "int64")  # one cache line per worker
+    out["span"] = ((nw, 8), "int64")  # CLOCK_MONOTONIC ns at which each worker's last run began, ended
     out["pacing"] = ((nw, pacing), "uint8")
     out["pace"] = ((2,), "float64")  # real-time factor (0: unpaced), clock origin (ns)
     out["steps"] = ((nc,), "int64")
@@ -362,6 +367,8 @@ class CompiledPlan:
         finally:
             self.position = n_next.value
             self.publish_stats()
+        if code == native.ABORTED:
+            raise Cancelled(f"cancelled before macro step {n_next.value}")
         if code > native.YIELD:
             raise self.error()
         return code, n_next.value
