@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 from fractions import Fraction
 from pathlib import Path
 
@@ -122,7 +123,7 @@ def plan(sc: Scenario) -> Plan:
     return build_plan(sc, variables, caps)
 
 
-def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
+def _make_backend(name: str, p: Plan, step_timeout: float | None = None, cpus: list[int] | None = None):
     from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, worker_groups
 
     timeout = step_timeout or DEFAULT_STEP_TIMEOUT
@@ -131,15 +132,15 @@ def _make_backend(name: str, p: Plan, step_timeout: float | None = None):
 
         return InProcessBackend(p)
     if name == "serial":
-        return WorkerBackend(p, [[pc.name for pc in p.components]], timeout)
+        return WorkerBackend(p, [[pc.name for pc in p.components]], timeout, cpus)
     if name == "parallel":
-        return WorkerBackend(p, worker_groups(p), timeout)
+        return WorkerBackend(p, worker_groups(p), timeout, cpus)
     if name == "auto":
         from master.backends.auto import choose_backend
 
         chosen, why = choose_backend(p, timeout)
         log.info("backend %s chosen automatically: %s", chosen, why)
-        be = _make_backend(chosen, p, step_timeout)
+        be = _make_backend(chosen, p, step_timeout, cpus)
         be.name = f"{chosen} (auto: {why})"
         return be
     raise UsageError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
@@ -158,6 +159,7 @@ def run(
     progress: bool = False,
     plot: str | Path | None = None,
     step_timeout: float | None = None,
+    cpus: list[int] | None = None,
 ) -> RunResult:
     """Run a scenario (file or `Scenario`) and return its results.
 
@@ -166,7 +168,9 @@ def run(
     every FMU), "parallel" (a worker process per component or group), "auto" (parallel when a
     timed serial trial says it pays) or "in-process" (the FMUs in this process: no protection
     against a crashing FMU, for debugging); `step_timeout`: s one component's macro step may take
-    before it counts as a hang (default 10). On failure, SIGINT, SIGTERM or SIGHUP a
+    before it counts as a hang (default 10); `cpus`: processors to pin the workers to, worker w on
+    cpus[w % len(cpus)] (paced runs also ask for SCHED_FIFO and locked memory). On failure, SIGINT,
+    SIGTERM or SIGHUP a
     SimulationError is raised after the rows computed so far are written; it carries `.result`
     (a RunResult) and, when a signal stopped the run, `.signal` (its number).
     """
@@ -181,7 +185,13 @@ def run(
     for note in p.notes:
         log.info(note)
     with stop_signals():
-        be = _make_backend(backend, p, step_timeout)
+        if cpus is not None:
+            bad = sorted(set(cpus) - os.sched_getaffinity(0))
+            if bad or not cpus:
+                raise UsageError(
+                    f"--cpus {cpus}: not processors this process may use ({sorted(os.sched_getaffinity(0))})"
+                )
+        be = _make_backend(backend, p, step_timeout, cpus)
         columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
         recorder = Recorder(columns, Path(output) if output is not None else None)
         try:

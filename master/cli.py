@@ -60,6 +60,12 @@ def _parser() -> argparse.ArgumentParser:
         metavar="S",
         help="a macro step of one component taking longer than this is a hang (s, default 10)",
     )
+    r.add_argument(
+        "--cpus",
+        type=_cpu_list,
+        metavar="LIST",
+        help="pin the workers to these processors, e.g. 2,3 or 2-5 (worker w on the w-th, cyclically)",
+    )
     r.add_argument("--plot", metavar="PNG", help="plot the recorded variables into this file")
     r.add_argument(
         "--real-time",
@@ -67,7 +73,8 @@ def _parser() -> argparse.ArgumentParser:
         const=1.0,
         type=float,
         metavar="FACTOR",
-        help="pace the run to the wall clock (FACTOR > 1: faster than real time)",
+        help="pace the run to the wall clock (FACTOR > 1: faster than real time); workers then ask for "
+        "SCHED_FIFO and locked memory (a note says where not permitted)",
     )
     r.add_argument(
         "--progress", action="store_true", help="show a progress bar even when stderr is not a tty"
@@ -93,6 +100,18 @@ def _parser() -> argparse.ArgumentParser:
     be = sub.add_parser("bench", help="work-precision bench of a scenario", add_help=False)
     be.add_argument("args", nargs=argparse.REMAINDER)
     return p
+
+
+def _cpu_list(text: str) -> list[int]:
+    """'2,3' or '2-5' or '0,4-6' -> processor numbers."""
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, _, hi = part.partition("-")
+            out.extend(range(int(lo), int(hi or lo) + 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected processor numbers like 2,3 or 2-5") from None
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -142,6 +161,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
                 real_time=args.real_time,
                 progress=progress,
                 plot=args.plot,
+                cpus=args.cpus,
             )
         except SimulationError as e:
             res = getattr(e, "result", None)

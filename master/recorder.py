@@ -107,6 +107,7 @@ class RunSummary:
         None  # --real-time: frame lateness quantiles "p50", "p99", "p99.9" (s)
     )
     output: str | None = None
+    notes: list[str] = field(default_factory=list)  # what the run could not do as asked
 
     @property
     def real_time_factor(self) -> float:
@@ -140,6 +141,7 @@ class RunSummary:
         if self.lateness:
             quantiles = ", ".join(f"{q} {v * 1e6:.0f} us" for q, v in self.lateness.items())
             lines.append(f"  frame lateness: {quantiles}")
+        lines.extend(f"  note: {n}" for n in self.notes)
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")
         return "\n".join(lines)

@@ -17,6 +17,7 @@ process is left behind (workers also die with the master, PR_SET_PDEATHSIG). Tim
 from __future__ import annotations
 
 import ctypes as C
+import os
 import shutil
 import tempfile
 import time
@@ -43,7 +44,9 @@ from master.runtime.tables import (
 )
 from master.schedule import Plan
 
-OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN = range(1, 5)
+OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN, OP_REALTIME = range(1, 6)
+FIFO_PRIORITY = 50  # SCHED_FIFO priority of paced workers, where permitted
+MCL_CURRENT, MCL_FUTURE = 1, 2
 DEFAULT_STEP_TIMEOUT = 10.0  # s: one component's macro step taking longer than this is a hang
 ROW_CAPACITY = 16384  # rows of the results ring the master drains
 
@@ -60,8 +63,18 @@ def worker_groups(plan: Plan) -> list[list[str]]:
 class _Task:
     """The components of one worker, opened and compiled in the worker process."""
 
-    def __init__(self, plan: Plan, names: list[str], outs: dict, memory: Memory, worker: int, n_workers: int):
+    def __init__(
+        self,
+        plan: Plan,
+        names: list[str],
+        outs: dict,
+        memory: Memory,
+        worker: int,
+        n_workers: int,
+        cpu: int | None = None,
+    ):
         self.plan = plan
+        self.cpu = cpu
         self.components = names
         self.outs = outs
         self.memory = memory
@@ -71,6 +84,8 @@ class _Task:
         self.cp: CompiledPlan | None = None
 
     def setup(self, where: np.ndarray) -> None:
+        if self.cpu is not None:
+            os.sched_setaffinity(0, {self.cpu})
         self.memory.touch()
         sc = self.plan.scenario
         for i, name in enumerate(self.components):
@@ -84,7 +99,8 @@ class _Task:
     def command(self, op: int, a: int, b: int, where: np.ndarray) -> None:
         """OP_SWEEP a: initial sweep of component a (plan index) if it is here. OP_EXIT_INIT: leave
         initialisation mode. OP_FINISH_INIT: divergence bounds, this worker's columns of the row at
-        the start time. OP_RUN a b: macro steps a .. b - 1, paced if the master says so."""
+        the start time. OP_REALTIME: SCHED_FIFO and locked memory where permitted. OP_RUN a b:
+        macro steps a .. b - 1, paced if the master says so."""
         cp = self.cp
         assert cp is not None
         try:
@@ -98,6 +114,8 @@ class _Task:
             elif op == OP_FINISH_INIT:
                 cp.set_bounds()
                 cp.record_row(-1)
+            elif op == OP_REALTIME:  # before the clock starts: locking the memory takes a while
+                self.memory["realtime"][self.worker] = realtime()
             elif op == OP_RUN:
                 factor, origin = self.memory["pace"]
                 if factor > 0:
@@ -121,15 +139,36 @@ class _Task:
             f.close()
 
 
+def realtime() -> tuple[int, int]:
+    """Make this process a real-time one where permitted: SCHED_FIFO, and all its memory locked
+    (no page fault in a frame). Returns the errno of each attempt (0: done)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FIFO_PRIORITY))
+        fifo = 0
+    except OSError as e:
+        fifo = e.errno or -1
+    libc = C.CDLL(None, use_errno=True)
+    lock = 0 if libc.mlockall(MCL_CURRENT | MCL_FUTURE) == 0 else C.get_errno()
+    return fifo, lock
+
+
 class WorkerBackend:
     """Executes a Plan in worker processes (see the module docstring).
 
-    groups: component names per worker (one group with all components: the serial backend).
+    groups: component names per worker (one group with all components: the serial backend);
+    cpus: processors to pin the workers to, worker w on cpus[w % len(cpus)] (None: no pinning).
     Use: `open()`, `initialize(recorder)`, `run(...)` ..., `close()`.
     """
 
-    def __init__(self, plan: Plan, groups: list[list[str]], step_timeout: float = DEFAULT_STEP_TIMEOUT):
+    def __init__(
+        self,
+        plan: Plan,
+        groups: list[list[str]],
+        step_timeout: float = DEFAULT_STEP_TIMEOUT,
+        cpus: list[int] | None = None,
+    ):
         self.plan = plan
+        self.cpus = cpus
         self.groups = groups
         self.name = "serial" if len(groups) == 1 else "parallel"
         self.step_timeout = step_timeout
@@ -156,8 +195,9 @@ class WorkerBackend:
         }
         self.memory = Memory(layout(self.plan, outs, len(self.groups), ROW_CAPACITY), shared=True)
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
+        cpu = (lambda w: self.cpus[w % len(self.cpus)]) if self.cpus else (lambda w: None)
         tasks = [
-            (names, partial(_Task, self.plan, names, outs, self.memory, w, len(self.groups)))
+            (names, partial(_Task, self.plan, names, outs, self.memory, w, len(self.groups), cpu(w)))
             for w, names in enumerate(self.groups)
         ]
         old_tmp, tempfile.tempdir = tempfile.tempdir, self.tmp  # FMUs extract where close() cleans up
@@ -192,8 +232,12 @@ class WorkerBackend:
         """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
         if not factor > 0:
             raise ValueError(f"real-time factor must be positive, got {factor}")
-        assert self.memory is not None
+        assert self.memory is not None and self.pool is not None
         self.memory["pace"][:] = factor, 0.0
+        try:
+            self.pool.run(OP_REALTIME)
+        except WorkerFailure as e:
+            raise self._error(e, self.plan.macro_clock.time(self.position), "preparing real time") from None
 
     def run(self, n_from: int, n_to: int, recorder: Recorder, budget: float = 0.0) -> int:
         """Step macro steps n_from .. n_to - 1 in the workers, returning after about `budget` s (0:
@@ -284,7 +328,15 @@ class WorkerBackend:
         """Real-time statistics over every worker's frames (see `pacing_stats`), None when unpaced."""
         if self.memory is None:
             return None
-        return pacing_stats([native.Pacing.from_buffer(p) for p in self.memory["pacing"]])
+        stats = pacing_stats([native.Pacing.from_buffer(p) for p in self.memory["pacing"]])
+        if stats is not None:
+            fifo, lock = self.memory["realtime"][: len(self.groups)].max(axis=0)
+            stats["notes"] = [
+                f"{what} not permitted ({os.strerror(int(err))}): frames may be late under load"
+                for what, err in (("SCHED_FIFO", fifo), ("mlockall", lock))
+                if err > 0
+            ]
+        return stats
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""

@@ -131,6 +131,7 @@ def layout(
     out["span"] = ((nw, 8), "int64")  # CLOCK_MONOTONIC ns at which each worker's last run began, ended
     out["pacing"] = ((nw, pacing), "uint8")
     out["pace"] = ((2,), "float64")  # real-time factor (0: unpaced), clock origin (ns)
+    out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
     out["steps"] = ((nc,), "int64")
     out["fmu_time"] = ((nc,), "float64")
     return out
