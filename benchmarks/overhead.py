@@ -10,15 +10,15 @@ extrapolation polynomials, and one doStep per macro step with the polynomial han
 (interpolateInputs, internal_step 2e-4 s).  Each case is the fastest of a few runs: the machine
 is shared, so the load average is printed too.
 
-Measured with the command above on the 2-core development machine (load average 1.3), the
-scene with seal friction, Jacobi, order 2 (commit 0a0b89c):
+Measured with the command above on the 2-core development machine (load average 1.1), the
+scene with seal friction, Jacobi, order 2, the macro-step loop in the compiled kernel (one worker
+process):
 
+    hydraulic, 5 doSteps per macro step        wall 0.041 s, overhead 0.8 us, RTF 72.5
+    hydraulic, 1 doStep + polynomials to FMU   wall 0.036 s, overhead 0.5 us, RTF 84.0
+    the same with the runtime in Python (numpy polynomials, ctypes calls per step):
     hydraulic, 5 doSteps per macro step        wall 0.077 s, overhead 10.3 us, RTF 39
     hydraulic, 1 doStep + polynomials to FMU   wall 0.067 s, overhead 10.7 us, RTF 45
-    the same with the runtime before vectorisation (per-step polynomials; fmpy's call
-    wrappers were counted as time inside the FMUs, which hid part of the overhead):
-    hydraulic, 5 doSteps per macro step        wall 0.328 s, overhead 79.4 us, RTF 9.1
-    hydraulic, 1 doStep + polynomials to FMU   wall 0.181 s, overhead 23.5 us, RTF 16.6
 
 When other jobs share the processors every figure can be 1.5 times worse.
 """
@@ -112,7 +112,7 @@ CHILD = (
     "import resource, sys; from fractions import Fraction; sys.path.insert(0, sys.argv[3]); "
     "import overhead, master.api as api; "
     "api.run(overhead.oscillator(Fraction(1, int(sys.argv[1])), Fraction(1), 0, False), output=sys.argv[2]); "
-    "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"
+    "print(max(resource.getrusage(w).ru_maxrss for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))"
 )
 
 
@@ -130,7 +130,7 @@ def memory() -> None:
                 sys.exit(r.stderr)
             peaks[n] = int(r.stdout.split()[-1]) / 1024
             rows = sum(1 for _ in open(out)) - 1
-            print(f"{n:>8} macro steps: {rows} rows written, peak RSS {peaks[n]:.1f} MB")
+            print(f"{n:>8} macro steps: {rows} rows written, peak RSS {peaks[n]:.1f} MB (master or worker)")
         print(f"difference: {peaks[10**6] - peaks[10**3]:.1f} MB (limit 50 MB)")
 
 

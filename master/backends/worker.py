@@ -1,16 +1,15 @@
-"""Worker processes of the parallel backend: start, one synchronisation per macro step, isolation.
+"""Worker processes: start, commands, isolation.
 
-Each worker runs a `Task` (one or more components) in its own process.  Per macro step the
-master writes a command (op, a, b) into shared memory and releases each worker's `go`
-semaphore; each worker runs it (steps its components, publishes its outputs into shared
-arrays) and releases its `done` semaphore.  That pair of semaphores is the one
-synchronisation point per step.  A waiting process first polls its semaphore for up to
-SPIN_S (yielding the processor between polls), then sleeps: waking a sleeping process
-costs tens of microseconds on the 2-core machine this was measured on, more than the
-whole exchange otherwise (benchmarks/parallel.py times the alternatives).
+Each worker runs a `Task` (one or more components) in its own forked process. The master writes a
+command (op, a, b) into shared memory and releases each worker's `go` semaphore; each worker runs
+it and releases its `done` semaphore. Commands are few: loading, the initial sweeps, and one command
+for the whole run (master.backends.workers), during which the workers synchronise with each
+other in the kernel and the master only supervises (`wait` with a `supervise` callback). A
+waiting process first polls its semaphore for up to SPIN_S (yielding the processor between
+polls), then sleeps.
 
 Isolation: a worker that dies (segfault, abort), overruns the step timeout (hang) or reports
-an exception (e.g. an FMU returning fmi2Error) makes `WorkerPool.run` raise `WorkerFailure`
+an exception (e.g. an FMU returning fmi2Error) makes `WorkerPool.wait` raise `WorkerFailure`
 naming the component and the cause.  `close()` always leaves no process
 behind: workers get SIGKILL if they do not stop in time, and they die with the master
 (PR_SET_PDEATHSIG) should the master itself be killed.

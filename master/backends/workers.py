@@ -183,6 +183,8 @@ class WorkerBackend:
         self.running = False
         self.recorder: Recorder | None = None
         self._rate = (time.perf_counter(), 0)  # (when, rows drained then): the drain period follows the rate
+        self._progress, self._progress_at = (0, 0), time.monotonic_ns()  # last (position, rows) and when
+        self._frame = 0.0  # s of wall time per macro step when paced
 
     def open(self) -> None:
         """Map the shared memory, start the workers; each loads and parameterises its FMUs."""
@@ -234,6 +236,7 @@ class WorkerBackend:
             raise ValueError(f"real-time factor must be positive, got {factor}")
         assert self.memory is not None and self.pool is not None
         self.memory["pace"][:] = factor, 0.0
+        self._frame = float(self.plan.scenario.macro_step) / factor
         try:
             self.pool.run(OP_REALTIME)
         except WorkerFailure as e:
@@ -251,6 +254,7 @@ class WorkerBackend:
                 pace[1] = float(time.monotonic_ns() + 1_000_000)  # every worker's frames from one origin
             self.pool.start(OP_RUN, n_from, n_to)
             self.running = True
+            self._progress_at = time.monotonic_ns()
         try:
             finished = self.pool.wait(self._supervise, budget)
         except WorkerFailure as e:
@@ -283,6 +287,14 @@ class WorkerBackend:
                 raise WorkerFailure(
                     comp, f"hang: a macro step took longer than the step timeout of {self.step_timeout:g} s"
                 )
+        progress = (self.position, self.drained)
+        if progress != self._progress:
+            self._progress, self._progress_at = progress, now
+        elif (now - self._progress_at) * 1e-9 > self.step_timeout + self._frame:
+            self.cancel()  # a hang outside a macro step (saving a state, reading a recorded value)
+            raise WorkerFailure(
+                None, f"hang: no macro step completed within the step timeout of {self.step_timeout:g} s"
+            )
         t_then, rows_then = self._rate
         t = time.perf_counter()
         rate = (self.drained - rows_then) / max(t - t_then, 1e-6)
