@@ -31,9 +31,19 @@ from typing import Any
 
 from lxml import etree
 
-REPO_DIR = Path(__file__).resolve().parent.parent
-FMUS_DIR = REPO_DIR / "fmus"
-BUILD_DIR = REPO_DIR / "build" / "fmus"
+PACKAGE_DIR = Path(__file__).resolve().parent
+REPO_DIR = PACKAGE_DIR.parent  # a source checkout, if fmus/ is beside the package
+
+
+def _cache_dir() -> Path:
+    """Where an installed package builds FMUs: $XDG_CACHE_HOME (or ~/.cache)/multirate-master/fmus."""
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "multirate-master" / "fmus"
+
+
+# the FMU sources: shipped inside an installed package (setup.py), else the checkout's fmus/
+FMUS_DIR = PACKAGE_DIR / "fmus" if (PACKAGE_DIR / "fmus").is_dir() else REPO_DIR / "fmus"
+BUILD_DIR = REPO_DIR / "build" / "fmus" if FMUS_DIR == REPO_DIR / "fmus" else _cache_dir()
 FMI_DIR = FMUS_DIR / "fmi"
 SOLVERS_DIR = FMUS_DIR / "solvers"
 
