@@ -75,12 +75,16 @@ def choose_backend(plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT) -> tu
         setup_p, parallel = trial(plan, groups, step_timeout)
     except (SimulationError, FmuError) as e:  # the run itself will say what fails, and where
         return "serial", f"a trial failed ({e})"
-    remaining = plan.n_macro - plan.startup_steps
-    gain = remaining * (serial - parallel) - (setup_p - setup_s)
     facts = (
         f"serial {serial * 1e6:.1f} us/step, parallel {parallel * 1e6:.1f} us/step measured "
         f"({len(groups)} workers on {cpus} CPUs; parallel needs {MARGIN:g}x)"
     )
-    if parallel * MARGIN < serial and gain > 0:
-        return "parallel", facts
-    return "serial", facts
+    return decide(serial, parallel, setup_p - setup_s, plan.n_macro - plan.startup_steps), facts
+
+
+def decide(serial: float, parallel: float, extra_setup: float, remaining: int) -> str:
+    """ "parallel" if it steps MARGIN times faster (s per macro step) and saves more over the
+    `remaining` macro steps than its `extra_setup` s of starting costs; else "serial"."""
+    if parallel * MARGIN < serial and remaining * (serial - parallel) > extra_setup:
+        return "parallel"
+    return "serial"
