@@ -15,7 +15,7 @@ from pathlib import Path
 from master.backends.component import SimulationError
 from master.backends.driver import execute, stop_signals
 from master.fmu import FmuError, read_description, variables_of
-from master.recorder import Recorder, RunResult
+from master.recorder import Recorder, ResultsError, RunResult
 from master.scenario.model import Scenario, Value
 from master.schedule import Capability, Plan, PlanError, build_plan
 
@@ -191,9 +191,16 @@ def run(
                 raise UsageError(
                     f"--cpus {cpus}: not processors this process may use ({sorted(os.sched_getaffinity(0))})"
                 )
-        be = _make_backend(backend, p, step_timeout, cpus)
         columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
-        recorder = Recorder(columns, Path(output) if output is not None else None)
+        try:  # before anything runs: a results file that cannot be written stops it at once
+            recorder = Recorder(columns, Path(output) if output is not None else None)
+        except ResultsError as e:
+            raise UsageError(str(e)) from None
+        try:
+            be = _make_backend(backend, p, step_timeout, cpus)
+        except BaseException:
+            recorder.discard()
+            raise
         try:
             be.open()
             summary = execute(p, be, recorder, real_time=real_time, progress=progress)
@@ -212,7 +219,10 @@ def run(
     if plot is not None:
         from master.recorder import plot_result
 
-        plot_result(result.data, plot, title=sc.name, units=_units(sc, p.record))
+        try:
+            plot_result(result.data, plot, title=sc.name, units=_units(sc, p.record))
+        except (OSError, ValueError) as e:  # PIL raises either for a path it cannot write
+            raise UsageError(f"--plot {plot}: cannot write the plot there ({e})") from None
     return result
 
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
+import time
 from pathlib import Path
 
 from master import api
@@ -26,12 +28,18 @@ USER_ERRORS: tuple[type[BaseException], ...] = (
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="master", description="Multirate FMI co-simulation master")
+    p.add_argument("--version", action="version", version=f"master {_version()}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
     r.add_argument("scenario", help="scenario file (.ssd or .ssp)")
     r.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
-    r.add_argument("-o", "--output", metavar="CSV", help="results file (CSV)")
+    r.add_argument(
+        "-o",
+        "--output",
+        metavar="CSV",
+        help="results file, .csv (default: results/SCENE-DATE-TIME.csv)",
+    )
     r.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
     r.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="set a parameter (repeatable)")
     r.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
@@ -71,7 +79,7 @@ def _parser() -> argparse.ArgumentParser:
         "--real-time",
         nargs="?",
         const=1.0,
-        type=float,
+        type=_positive,
         metavar="FACTOR",
         help="pace the run to the wall clock (FACTOR > 1: faster than real time); workers then ask for "
         "SCHED_FIFO and locked memory (a note says where not permitted)",
@@ -102,6 +110,25 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("master")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive number")
+    return value
+
+
 def _cpu_list(text: str) -> list[int]:
     """'2,3' or '2-5' or '0,4-6' -> processor numbers."""
     out: list[int] = []
@@ -121,18 +148,23 @@ def main(argv: list[str] | None = None) -> int:
     if argv[:1] == ["build-fmus"]:
         from master.fmubuild import main as build_main
 
-        return int(build_main(argv[1:]) or 0)
+        return int(build_main(argv[1:], prog="master build-fmus") or 0)
     if argv[:1] == ["bench"]:
         from master.evidence.bench import main as bench_main
 
         return int(bench_main(argv[1:]) or 0)
     args = _parser().parse_args(argv)
     quiet = getattr(args, "quiet", False)
-    logging.basicConfig(
-        level=logging.WARNING if quiet else logging.INFO, format="%(message)s", stream=sys.stderr
-    )
+    handler = logging.StreamHandler(sys.stderr)  # master's own messages; other libraries' stay quiet
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("master")
+    log.addHandler(handler)
+    log.setLevel(logging.WARNING if quiet else logging.INFO)
     try:
         return _dispatch(args, quiet)
+    except BrokenPipeError:  # e.g. `master info X | head -1`: the reader has gone, nothing to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except SimulationError as e:
         print(f"error: {e}", file=sys.stderr)
         signum = getattr(e, "signal", None)
@@ -145,14 +177,27 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def _default_output(scenario: str) -> Path:
+    """results/<scenario name>-<date>-<time>.csv: a run without -o still keeps what it computed."""
+    return Path("results") / f"{Path(scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
+
+
 def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
     if args.command == "run":
         progress = args.progress or (sys.stderr.isatty() and not quiet)
+        if Path(args.scenario).suffix.lower() == ".fmu":
+            raise api.UsageError(
+                f"{args.scenario}: an FMU, not a scenario; `master info {args.scenario}` describes it, "
+                "a scenario (.ssd/.ssp) runs it"
+            )
+        output = Path(args.output) if args.output else _default_output(args.scenario)
+        if output.suffix.lower() != ".csv":
+            raise api.UsageError(f"-o {output}: results are written as CSV; name a .csv file")
         try:
             result = api.run(
                 args.scenario,
                 stop_time=args.stop_time,
-                output=args.output,
+                output=output,
                 record=args.record,
                 set_values=args.set,
                 output_interval=args.output_interval,
@@ -170,6 +215,8 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             raise
         if not quiet:
             print(result.summary)
+            if args.plot:
+                print(f"  plot written to {args.plot}")
         return 0
     if args.command == "validate":
         problems = api.validate(args.scenario)
@@ -189,7 +236,12 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         csv = Path(args.csv)
         if not csv.is_file():
             raise api.UsageError(f"{csv}: no such results file")
-        data = read_csv(str(csv))
+        try:
+            data = read_csv(str(csv))
+        except (ValueError, IndexError, UnicodeDecodeError) as e:
+            raise api.UsageError(f"{csv}: not a results CSV file ({e})") from None
+        if not data.dtype.names or "time" not in data.dtype.names:
+            raise api.UsageError(f"{csv}: not a results CSV file (no 'time' column)")
         if args.record:
             missing = [r for r in args.record if r not in data.dtype.names]
             if missing:

@@ -515,9 +515,9 @@ def _shown(path: Path) -> str:
     return str(path.relative_to(REPO_DIR)) if path.is_relative_to(REPO_DIR) else str(path)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, prog: str = "python -m master.fmubuild") -> int:
     """Command line: ``[--write-xml] [name ...]``; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="python -m master.fmubuild", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog=prog, description="Build the project's FMUs from their C sources.")
     parser.add_argument("--write-xml", action="store_true", help="regenerate modelDescription.xml first")
     parser.add_argument("names", nargs="*", help="models to build (default: all folders with model.c)")
     args = parser.parse_args(argv)

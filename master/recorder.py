@@ -18,6 +18,10 @@ import numpy as np
 CHUNK_ROWS = 4096
 
 
+class ResultsError(OSError):
+    """Results cannot be written: names the file and why."""
+
+
 class Recorder:
     """Collects rows of `len(columns)` floats; `columns[0]` is "time"."""
 
@@ -27,15 +31,20 @@ class Recorder:
         self.chunk = np.zeros((chunk_rows, len(columns)))
         self.fill = 0
         self.rows = 0
-        self.tmpdir = Path(tempfile.mkdtemp(prefix="master_results_"))
-        self.bin_path = self.tmpdir / "results.bin"
-        self._bin = open(self.bin_path, "wb")
         self.csv_path = Path(csv_path) if csv_path is not None else None
         self._csv = None
         if self.csv_path is not None:
-            self.csv_path.parent.mkdir(parents=True, exist_ok=True)
-            self._csv = open(self.csv_path, "w")
-            self._csv.write(",".join(f'"{c}"' if c != "time" else c for c in columns) + "\n")
+            try:
+                self.csv_path.parent.mkdir(parents=True, exist_ok=True)
+                self._csv = open(self.csv_path, "w")
+                self._csv.write(",".join(f'"{c}"' if c != "time" else c for c in columns) + "\n")
+            except OSError as e:
+                raise ResultsError(
+                    f"{self.csv_path}: cannot write the results there ({e.strerror or e})"
+                ) from None
+        self.tmpdir = Path(tempfile.mkdtemp(prefix="master_results_"))
+        self.bin_path = self.tmpdir / "results.bin"
+        self._bin = open(self.bin_path, "wb")
 
     def next_row(self) -> np.ndarray:
         """The row to fill next (a view into the chunk); call `commit()` once it is filled."""
@@ -61,9 +70,13 @@ class Recorder:
             self.fill = 0
 
     def _append(self, block: np.ndarray) -> None:
-        self._bin.write(block.tobytes())
-        if self._csv is not None:
-            np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
+        try:
+            self._bin.write(block.tobytes())
+            if self._csv is not None:
+                np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
+        except OSError as e:  # a full disk, a file system gone read-only
+            where = self.csv_path if self._csv is not None else self.bin_path
+            raise ResultsError(f"{where}: cannot write the results ({e.strerror or e})") from None
 
     def close(self) -> None:
         """Flush and close the files (the results stay readable through `data()`)."""

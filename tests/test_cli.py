@@ -143,3 +143,81 @@ def test_results_stream_to_disk_memory_stays_flat(tmp_path):
     p_big = peak_kib(big, tmp_path / "big.csv")
     assert len((tmp_path / "big.csv").read_text().splitlines()) == 100_002
     assert p_big - p_small < 50 * 1024, (p_small, p_big)
+
+
+# -- one clear line, never a traceback (issue: a clean first hour) -------------------------------
+
+
+def test_version():
+    r = master("--version")
+    assert r.returncode == 0 and r.stdout.startswith("master ")
+
+
+@pytest.mark.parametrize(
+    "case, args, code, said",
+    [
+        ("fmu-as-scenario", ["run", "{fmu}"], 1, "an FMU, not a scenario"),
+        ("plot-non-csv", ["plot", "{readme}"], 1, "not a results CSV file"),
+        ("png-as-output", ["run", "{ssd}", "-o", "{tmp}/x.png"], 1, "name a .csv file"),
+        ("output-is-directory", ["run", "{ssd}", "-o", "{tmp}/dir.csv"], 1, "cannot write the results there"),
+        (
+            "output-under-a-file",
+            ["run", "{ssd}", "-o", "{readme}/x.csv"],
+            1,
+            "cannot write the results there",
+        ),
+        (
+            "plot-under-a-file",
+            ["run", "{ssd}", "-o", "{tmp}/ok.csv", "--plot", "{readme}/x.png"],
+            1,
+            "--plot",
+        ),
+        ("zero-real-time", ["run", "{ssd}", "--real-time", "0"], 2, "expected a positive number"),
+        ("bad-cpus", ["run", "{ssd}", "--cpus", "x"], 2, "expected processor numbers"),
+    ],
+)
+def test_bad_input_gives_one_line(case, args, code, said, decay, tmp_path):
+    (tmp_path / "dir.csv").mkdir()
+    readme = Path(__file__).resolve().parent.parent / "README.md"
+    subs = {"fmu": str(fmu_path("dahlquist")), "readme": str(readme), "ssd": str(decay), "tmp": str(tmp_path)}
+    r = master(*(a.format(**subs) for a in args), cwd=tmp_path)
+    assert r.returncode == code, r.stderr
+    assert said in r.stderr and "Traceback" not in r.stderr
+    assert sum("error:" in line for line in r.stderr.splitlines()) == 1, r.stderr
+    assert not list(tmp_path.glob("master_results_*")) and not list(tmp_path.glob("master-run-*"))
+
+
+def test_run_without_output_writes_under_results_and_says_where(decay, tmp_path):
+    r = master("run", str(decay), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    (csv,) = (tmp_path / "results").glob("decay-*.csv")
+    assert f"rows written to {Path('results') / csv.name}" in r.stdout
+    assert len(read_csv(str(csv))) == 101
+
+
+def test_closed_pipe_ends_quietly():
+    """`master info X | head -1`: the reader goes away, master ends without a traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "master", "info", str(fmu_path("dahlquist"))],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    proc.stdout.close()  # nobody reads: the first write fails
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0 and "Traceback" not in err and "BrokenPipe" not in err
+
+
+def test_subcommand_help_names_itself():
+    assert master("build-fmus", "--help").stdout.startswith("usage: master build-fmus")
+    text = master("bench", "--help").stdout
+    assert text.startswith("usage: master bench") and "plot wall time against error." in text
+
+
+def test_readme_usage_block_lists_every_run_option():
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    usage = readme[readme.index("master run SCENARIO") : readme.index("master validate")]
+    # each option of `master run --help` (either spelling of one with two) appears in the block
+    lines = [ln.strip() for ln in master("run", "--help").stdout.splitlines() if ln.strip().startswith("-")]
+    spellings = [[w.strip(",") for w in ln.split() if w.startswith("-")] for ln in lines]
+    missing = sorted(s[0] for s in spellings if s[0] != "-h" and not any(w in usage for w in s))
+    assert not missing, f"README usage block lacks {missing}"

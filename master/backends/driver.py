@@ -11,7 +11,7 @@ from contextlib import contextmanager
 from typing import Protocol
 
 from master.backends.component import SimulationError
-from master.recorder import Recorder, RunSummary
+from master.recorder import Recorder, ResultsError, RunSummary
 from master.schedule import Plan
 
 
@@ -124,6 +124,12 @@ def execute(
         summary.stop_reason = f"failed: {e}"
         e.summary = summary  # type: ignore[attr-defined]
         raise
+    except ResultsError as e:  # the run is fine, its results cannot be kept: stop it like a failure
+        t = plan.macro_clock.time(backend.position)
+        err = SimulationError(f"{e} at t={t}", "", t)
+        summary.stop_reason = f"failed: {err}"
+        err.summary = summary  # type: ignore[attr-defined]
+        raise err from None
     except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP: keep the rows so far, like any other stop
         t = plan.macro_clock.time(backend.position)
         signum = getattr(e, "signum", signal.SIGINT)

@@ -396,17 +396,30 @@ def report(rows: list[Row], baseline: Config) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """`master bench SCENARIO [--quick] [--out DIR] [--repeats N]`."""
-    ap = argparse.ArgumentParser(prog="master bench", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="master bench",
+        description="Work-precision bench: run a scene in many configurations, time them, measure "
+        "their error against a reference solution and plot wall time against error.",
+    )
     ap.add_argument("scenario", help="scenario file (.ssd / .ssp)")
     ap.add_argument("--quick", action="store_true", help="a handful of configurations (for tests)")
-    ap.add_argument("--out", default="docs/evidence", help="folder for the CSV table and PNG plot")
+    ap.add_argument(
+        "--out", default=None, help="folder for the CSV table and PNG plot (default: results/bench-SCENE)"
+    )
     ap.add_argument("--repeats", type=int, default=3, help="runs per configuration; wall time is the median")
     a = ap.parse_args(argv)
-    from master.api import load_scenario
+    from master.api import UsageError, load_scenario
+    from master.scenario import ScenarioError
 
-    p = profile_for(load_scenario(a.scenario))
-    rows = bench(a.scenario, Path(a.out), quick=a.quick, repeats=a.repeats)
+    out = Path(a.out) if a.out else Path("results") / f"bench-{Path(a.scenario).stem}"
+    try:
+        p = profile_for(load_scenario(a.scenario))
+        rows = bench(a.scenario, out, quick=a.quick, repeats=a.repeats)
+    except (UsageError, ScenarioError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     print(report(rows, p.baseline))
+    print(f"wrote {out}/")
     return 0
 
 

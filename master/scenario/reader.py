@@ -19,6 +19,7 @@ from . import archive, bindings, fmuinfo, loops, settings, xmlio
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
 from .model import Component, Connection, Scenario
+from .numbers import parse_time
 from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError
 from .xmlio import tag
 
@@ -283,13 +284,6 @@ def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuin
     return c.info.variables.get(connector)  # None: reported at the ssd:Connector already
 
 
-def parse_time(text: str) -> Fraction:
-    """An exact time from a decimal string ("0.0002" -> 1/5000); never through a float.
-
-    Raises ValueError for text that is not a finite decimal number."""
-    return Fraction(text.strip())
-
-
 def _experiment(ctx: Context, root: etree._Element) -> tuple[Fraction, Fraction] | None:
     """(startTime, stopTime) of ssd:DefaultExperiment; stopTime is required, startTime defaults to 0."""
     exp = root.find(tag(NS_SSD, "DefaultExperiment"))
@@ -304,8 +298,8 @@ def _experiment(ctx: Context, root: etree._Element) -> tuple[Fraction, Fraction]
             return None
         try:
             times.append(parse_time(text))
-        except ValueError:
-            ctx.at(exp, f'{attr} "{text}" is not a finite decimal number of seconds')
+        except ValueError as e:
+            ctx.at(exp, f"{attr}: {e}")
             return None
     start, stop = times
     if stop <= start:

@@ -17,6 +17,7 @@ from lxml import etree
 from .context import Context
 from .fmuinfo import FLOATS, NUMERIC
 from .model import Stimulus
+from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
 from .xmlio import tag
 
@@ -38,20 +39,34 @@ class Settings:
     stimuli: tuple[Stimulus, ...] = ()
 
 
-def _time(text: str | None) -> Fraction | None:
-    """A schema-checked time attribute as an exact rational (None if absent or malformed:
-    the schema check has reported malformed ones)."""
+MAX_STEP_RATIO = 100_000  # communication steps of one component per macro step
+MAX_MACRO_STEPS = 10**10  # macro steps of one run
+EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
+
+
+def _time(ctx: Context, elem: etree._Element, attr: str) -> Fraction | None:
+    """A time attribute as an exact rational; None if absent, or if it is not a usable time (the
+    problem reported: `parse_time` bounds its length, exponent and size)."""
+    text = elem.get(attr)
     if text is None:
         return None
     try:
-        return Fraction(text.strip())
-    except ValueError:
+        return parse_time(text)
+    except ValueError as e:
+        ctx.at(elem, f"{attr}: {e}")
         return None
 
 
 def _int(text: str | None) -> int | None:
+    """A schema-checked integer attribute (None if absent or malformed: the schema check reports
+    malformed ones); one of more than 18 digits is 10**18, which every limit refuses."""
+    if text is None:
+        return None
+    t = text.strip().lstrip("+")
+    if len(t) > 18 and t.isdigit():
+        return 10**18
     try:
-        return int(text) if text is not None else None
+        return int(t)
     except ValueError:
         return None
 
@@ -97,9 +112,9 @@ def read(
     elem = find(ctx, root, system)
     if elem is None:
         return None
-    macro = _time(elem.get("macroStep"))
+    macro = _time(ctx, elem, "macroStep")
     if macro is None:
-        return None  # schema error already
+        return None  # reported (absent: by the schema check)
     if macro <= 0:
         ctx.at(elem, "macroStep must be positive")
         return None
@@ -113,6 +128,8 @@ def read(
                 f"stopTime - startTime = {_s(span)} is not a whole number of macro steps ({_s(macro)})",
             )
     _components(ctx, elem, s)
+    if times is not None:
+        _limits(ctx, elem, s, times)
     _order(ctx, elem, s)
     ends = {
         (c.get("endElement"), c.get("endConnector"))
@@ -122,6 +139,29 @@ def read(
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     return s
+
+
+def _limits(ctx: Context, elem: etree._Element, s: Settings, times: tuple[Fraction, Fraction]) -> None:
+    """A run no machine can finish, or whose clocks leave exact float arithmetic, is refused here
+    with the figure that exceeds the limit, not discovered while running."""
+    start, stop = times
+    n_macro = (stop - start) / s.macro_step
+    if n_macro > MAX_MACRO_STEPS:
+        ctx.at(
+            elem,
+            f"{float(n_macro):.3g} macro steps from startTime to stopTime: at most {MAX_MACRO_STEPS:.0e}",
+        )
+        return
+    for name, k in {"the macro clock": 1, **s.step_ratio}.items():
+        h = s.macro_step / k
+        den = math.lcm(start.denominator, h.denominator)
+        last = abs(start) * den + math.ceil(n_macro) * k * h * den
+        if den >= EXACT or last >= EXACT:
+            ctx.at(
+                elem,
+                f"{name}: times {_s(start)} + j {_s(h)} need integers beyond 2^53 over {int(n_macro)} "
+                "macro steps; choose times with fewer decimals",
+            )
 
 
 def _s(t: Fraction) -> str:
@@ -167,12 +207,12 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
 
 def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
     """The step ratio k (communication step = macro step / k) of one mm:Component."""
-    ratio, step = _int(ce.get("stepRatio")), _time(ce.get("communicationStep"))
+    ratio, step = _int(ce.get("stepRatio")), _time(ctx, ce, "communicationStep")
     if ratio is not None and ce.get("communicationStep") is not None:
         ctx.at(ce, "give stepRatio or communicationStep, not both")
         return ratio
     if step is None:
-        return ratio or 1
+        return _ratio_limit(ctx, ce, ratio or 1)
     if step <= 0:
         ctx.at(ce, "communicationStep must be positive")
         return 1
@@ -180,7 +220,14 @@ def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
     if k.denominator != 1:
         ctx.at(ce, f"communicationStep {_s(step)} does not divide the macro step {_s(macro)} (ratio {k})")
         return 1
-    return int(k)
+    return _ratio_limit(ctx, ce, int(k))
+
+
+def _ratio_limit(ctx: Context, ce: etree._Element, k: int) -> int:
+    if k > MAX_STEP_RATIO:
+        ctx.at(ce, f"{k} communication steps per macro step: at most {MAX_STEP_RATIO} are allowed")
+        return 1
+    return k
 
 
 def _order(ctx: Context, elem: etree._Element, s: Settings) -> None:
@@ -222,7 +269,7 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     rec = elem.find(tag(NS_MM, "Record"))
     if rec is None:
         return
-    interval = _time(rec.get("interval"))
+    interval = _time(ctx, rec, "interval")
     if interval is not None:
         k = interval / s.macro_step
         if interval <= 0 or k.denominator != 1:

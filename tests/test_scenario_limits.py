@@ -1,0 +1,51 @@
+"""Numbers and sizes in a scenario: bounded cost to read, limits checked at validate, one clear
+problem each (the classes a mutation campaign over scenario files turned up)."""
+
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+import master.api as api
+from master.scenario import ScenarioError
+
+SCENE = Path(__file__).resolve().parent / "scenarios" / "oscillator"
+
+
+def mutated(tmp_path: Path, old: str, new: str) -> Path:
+    """The oscillator scene with `old` replaced by `new` (its parameter files beside it)."""
+    for f in SCENE.iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    ssd = tmp_path / "oscillator.ssd"
+    text = ssd.read_text()
+    assert old in text
+    ssd.write_text(text.replace(old, new, 1))
+    return ssd
+
+
+CASES = [
+    ("fraction-time", 'stopTime="10"', 'stopTime="1/0"', "not a decimal number"),
+    ("overflowing-stop", 'stopTime="10"', 'stopTime="1e400"', "exponent is beyond"),
+    ("overflowing-start", 'startTime="0"', 'startTime="-1e309"', "exponent is beyond"),
+    ("huge-exponent", 'stopTime="10"', 'stopTime="1e100000000"', "exponent is beyond"),
+    ("too-far", 'stopTime="10"', 'stopTime="1e13"', "is beyond 1e+12 s"),
+    ("many-digits-macro", 'macroStep="0.01"', 'macroStep="0.' + "0" * 5000 + '1"', "characters"),
+    ("long-step", 'communicationStep="0.0025"', 'communicationStep="0.0025' + "0" * 60 + '"', "characters"),
+    ("huge-ratio", 'stepRatio="1"', 'stepRatio="1000000000"', "at most 100000"),
+    ("endless-ratio", 'stepRatio="1"', 'stepRatio="' + "9" * 5000 + '"', "at most 100000"),
+    ("too-many-steps", 'macroStep="0.01"', 'macroStep="1e-10"', "macro steps from startTime to stopTime"),
+    ("inexact-clock", 'macroStep="0.01"', 'macroStep="0.0000000000000000000000000001"', "at most"),
+]
+
+
+@pytest.mark.parametrize("old, new, said", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_numbers_are_one_problem_each_found_fast(old, new, said, tmp_path):
+    ssd = mutated(tmp_path, old, new)
+    t0 = time.perf_counter()
+    problems = api.validate(ssd)
+    assert time.perf_counter() - t0 < 10  # bounded cost: a 1e100000000 once took minutes
+    assert problems, "validate accepted it"
+    assert any(said in str(p) for p in problems), [str(p) for p in problems]
+    with pytest.raises(ScenarioError):
+        api.load_scenario(ssd)
