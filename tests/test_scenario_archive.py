@@ -117,3 +117,73 @@ def test_archive_without_ssd_or_not_a_zip(tmp_path: Path):
     junk.write_bytes(b"this is not a zip archive")
     (problem,) = validate(junk)
     assert problem.file == str(junk) and "not a readable .ssp (zip) archive" in problem.message
+
+
+def _damage(archive: Path, member: str, how: str) -> None:
+    """Mark `member` encrypted, give it an unknown compression method, or corrupt its data."""
+    data = bytearray(archive.read_bytes())
+    with zipfile.ZipFile(archive) as zf:
+        info = zf.getinfo(member)
+    local = info.header_offset
+    central = data.find(b"PK\x01\x02")  # the central directory entry of `member`
+    while data[central + 46 : central + 46 + len(member)] != member.encode():
+        central = data.find(b"PK\x01\x02", central + 4)
+    if how == "encrypted":
+        for at in (local + 6, central + 8):  # general purpose flag: bit 0
+            data[at] |= 0x1
+    elif how == "method":
+        for at in (local + 8, central + 10):  # compression method 99 (AES, unknown here)
+            data[at : at + 2] = (99).to_bytes(2, "little")
+    else:  # the deflate stream itself
+        start = local + 30 + int.from_bytes(data[local + 26 : local + 28], "little")
+        start += int.from_bytes(data[local + 28 : local + 30], "little")
+        data[start : start + 16] = b"\xff" * 16
+    archive.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    "how, said", [("encrypted", "encrypted member"), ("method", "compression method"), ("deflate", "damaged")]
+)
+def test_damaged_archives_are_reported_at_validate(tmp_path: Path, how, said):
+    archive = tmp_path / "oscillator.ssp"
+    with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in oscillator_members().items():
+            zf.writestr(name, data)
+    _damage(archive, "mass1.ssv", how)
+    problems = validate(archive)
+    assert any(said in str(p) for p in problems), [str(p) for p in problems]
+
+
+def test_the_unpacked_archives_are_evicted_beyond_the_cache_budget(tmp_path: Path, cache: Path, monkeypatch):
+    from master.scenario import archive as arch
+
+    monkeypatch.setattr(arch, "CACHE_BYTES", 3 * len(fmu_path("msd").read_bytes()))
+    for i in range(6):  # six different archives (the ssd differs), each about one FMU in size
+        members = oscillator_members()
+        members["SystemStructure.ssd"] += f"<!-- {i} -->".encode()
+        assert validate(pack(tmp_path / f"s{i}.ssp", members)) == []
+    kept = [d for d in cache.iterdir() if not d.name.startswith(".")]
+    assert 1 <= len(kept) <= 3
+
+
+def test_a_doctype_is_refused(tmp_path: Path):
+    ssd = (SCENE / "oscillator.ssd").read_text()
+    evil = ssd.replace(
+        "<ssd:SystemStructureDescription",
+        '<!DOCTYPE x [<!ENTITY e "0.01">]>\n<ssd:SystemStructureDescription',
+        1,
+    )
+    (tmp_path / "x.ssd").write_text(evil.replace('macroStep="0.01"', 'macroStep="&e;"'))
+    for f in ("mass1.ssv", "coupling.ssv"):
+        shutil.copy(SCENE / f, tmp_path / f)
+    problems = validate(tmp_path / "x.ssd")
+    assert len(problems) == 1 and "DOCTYPE" in str(problems[0])
+
+
+def test_a_source_name_too_long_for_the_file_system(tmp_path: Path):
+    ssd = (SCENE / "oscillator.ssd").read_text().replace('source="msd"', f'source="{"m" * 300}.fmu"')
+    (tmp_path / "x.ssd").write_text(ssd)
+    for f in ("mass1.ssv", "coupling.ssv"):
+        shutil.copy(SCENE / f, tmp_path / f)
+    problems = validate(tmp_path / "x.ssd")
+    assert any("not a usable file name" in str(p) for p in problems), [str(p) for p in problems]

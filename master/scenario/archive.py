@@ -8,12 +8,15 @@ import shutil
 import stat
 import tempfile
 import zipfile
+import zlib
 from pathlib import Path, PurePosixPath
 
 from .problems import Problems
 
 SSD_NAME = "SystemStructure.ssd"
-MAX_UNPACKED_BYTES = 2 << 30  # 2 GiB: a larger archive is more likely a zip bomb than a scene
+MAX_UNPACKED_BYTES = 512 << 20  # 512 MiB: a larger archive is more likely a zip bomb than a scene
+CACHE_BYTES = 1 << 30  # the unpacked archives kept, least recently used evicted beyond this
+METHODS = {zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA}
 
 
 def cache_root() -> Path:
@@ -34,6 +37,10 @@ def _unsafe(info: zipfile.ZipInfo) -> str | None:
     mode = info.external_attr >> 16
     if stat.S_ISLNK(mode):
         return "symbolic link member"
+    if info.flag_bits & 0x1:
+        return "encrypted member"
+    if info.compress_type not in METHODS:
+        return f"unknown compression method {info.compress_type}"
     return None
 
 
@@ -65,6 +72,7 @@ def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
             return None
         target = cache_root() / digest
         if (target / SSD_NAME).is_file():
+            os.utime(target)  # recently used: evicted last
             return target
         target.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=".unpack-", dir=target.parent))
@@ -76,9 +84,27 @@ def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
             except OSError:
                 if not (target / SSD_NAME).is_file():
                     raise
-        except (OSError, zipfile.BadZipFile) as err:
-            problems.add(shown, None, "archive", f"cannot unpack: {err}")
+        except (OSError, zipfile.BadZipFile, zlib.error, EOFError, RuntimeError, NotImplementedError) as err:
+            problems.add(shown, None, "archive", f"cannot unpack (damaged archive?): {err}")
             return None
         finally:
             shutil.rmtree(staging, ignore_errors=True)
+        _evict(target)
         return target
+
+
+def _evict(keep: Path) -> None:
+    """Remove the least recently used unpacked archives until the cache holds CACHE_BYTES at most."""
+    entries = []
+    for d in keep.parent.iterdir():
+        if d.is_dir() and not d.name.startswith(".") and d != keep:
+            size = sum(f.stat().st_size for f in d.rglob("*") if f.is_file())
+            entries.append((d.stat().st_mtime, size, d))
+    total = sum(size for _, size, _ in entries) + sum(
+        f.stat().st_size for f in keep.rglob("*") if f.is_file()
+    )
+    for _, size, d in sorted(entries):
+        if total <= CACHE_BYTES:
+            break
+        shutil.rmtree(d, ignore_errors=True)
+        total -= size

@@ -81,10 +81,14 @@ def resolve_source(source: str, base: Path, inside: Path | None = None, built: d
         return _project(source[len(PROJECT_SCHEME) :], built)
     if "://" in source or source.startswith("file:"):
         raise SourceError(f'unsupported URI "{source}": use a relative path or project:NAME')
-    candidate = (base / source).resolve()
+    try:
+        candidate = (base / source).resolve()
+        found = candidate.is_file()
+    except (OSError, ValueError) as err:  # a name too long for the file system, a NUL byte
+        raise SourceError(f'source "{source[:60]}": not a usable file name ({err})') from None
     if inside is not None and not candidate.is_relative_to(inside.resolve()):
         raise SourceError(f'source "{source}" points outside the archive')
-    if candidate.is_file():
+    if found:
         return candidate
     if source in project_fmu_names():
         return _project(source, built)

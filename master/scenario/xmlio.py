@@ -21,7 +21,13 @@ def parse(path: Path, shown: str, problems: Problems) -> etree._ElementTree | No
         resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True, remove_pis=True
     )
     try:
-        return etree.parse(str(path), parser)
+        tree = etree.parse(str(path), parser)
+        if tree.docinfo.doctype:  # entities would reach the schema check unexpanded
+            problems.add(
+                shown, 1, "XML", "a DOCTYPE (DTD, entity declarations) is not accepted in scenario files"
+            )
+            return None
+        return tree
     except etree.XMLSyntaxError as err:
         entry = err.error_log.last_error if err.error_log else None
         line = entry.line if entry is not None else err.lineno
