@@ -458,6 +458,8 @@ def build_fmu(name: str) -> Path:
     """
     model_dir = _model_dir(name)
     xml_path = model_dir / "modelDescription.xml"
+    if sys.stderr.isatty():  # a few seconds of compiling should not look like a hang
+        print(f"building FMU {name} from its C sources ...", file=sys.stderr, flush=True)
     started = time.time()
     desc = describe(name)
     expected = model_description_xml(name, desc)

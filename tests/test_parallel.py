@@ -171,7 +171,13 @@ def test_paper_scene_bitwise_equal(scene):
 
 # -- failures ------------------------------------------------------------------------------------
 
-CAUSES = {1: "SIGSEGV", 2: "hang", 3: "SIGABRT", 4: "crashtest: error requested at t = 0.5"}  # formatted
+CAUSES = {  # the FMU's own message formatted with its arguments
+    1: "SIGSEGV",
+    2: "hang",
+    3: "SIGABRT",
+    4: "crashtest: error requested at t = 0.5",
+    5: "status 4 (fatal)",
+}
 
 
 def shm_entries() -> set[str]:
@@ -179,7 +185,7 @@ def shm_entries() -> set[str]:
 
 
 @pytest.mark.parametrize("backend", ["serial", "parallel"])
-@pytest.mark.parametrize("mode", [1, 2, 3, 4], ids=["segfault", "hang", "abort", "error"])
+@pytest.mark.parametrize("mode", [1, 2, 3, 4, 5], ids=["segfault", "hang", "abort", "error", "fatal"])
 def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_path, monkeypatch):
     """c1 misbehaves from t = 0.5 s: the run stops there, rows up to the last macro step are kept
     (readable by fmpy), and no process, shared-memory segment or temporary folder is left."""

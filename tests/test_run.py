@@ -113,16 +113,17 @@ def test_third_party_fmu_chain_matches_hand_computation(fmus, tmp_path):
     assert s.wall_time > sum(s.fmu_time.values()) > 0
 
 
-def test_non_finite_output_stops_the_run_and_keeps_earlier_results(fmus, tmp_path):
+@pytest.mark.parametrize("backend", ["serial", "parallel", "in-process"])
+def test_non_finite_output_stops_the_run_and_keeps_earlier_results(fmus, tmp_path, backend):
     sc = scene(
         [Component("src", fmus["Lag"]), Component("sink", fmus["Lag"], {"t_fail": 0.6})],
         [Connection("src", "y", "sink", "u")],
     )
     csv = tmp_path / "out.csv"
     with pytest.raises(SimulationError) as e:
-        api.run(sc, output=csv)
+        api.run(sc, output=csv, backend=backend)
     msg = str(e.value)
-    assert "unstable: sink.y at t=0.6" in msg and "smaller macro step" in msg
+    assert "unstable: sink.y at t=0.6" in msg and "smaller macro step" in msg and "NaN" in msg
     assert e.value.component == "sink" and e.value.variable == "y"
     rows = read_csv(str(csv))
     assert rows["time"][-1] == pytest.approx(0.5)

@@ -42,6 +42,7 @@ typedef struct {
     int derivatives_dirty;  /* ... since the derivative slots were written */
     int have_input_derivatives; /* some fmi2SetRealInputDerivatives since the last doStep */
     int initialized;        /* Initialization Mode: MODEL.initialize ran and only inputs changed since */
+    int fatal;              /* the model reported MODEL_FATAL: the step ends with fmi2Fatal */
 } Core;
 
 struct Instance {

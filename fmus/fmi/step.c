@@ -28,7 +28,9 @@ static void apply_input_polynomials(Instance *inst, double t) {
 int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
     Instance *inst = ctx;
     if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
-    return inst->model->derivatives(inst, t, x, dx) != MODEL_OK;
+    ModelStatus st = inst->model->derivatives(inst, t, x, dx);
+    if (st == MODEL_FATAL) inst->core->fatal = 1;
+    return st != MODEL_OK;
 }
 
 int jac_with_inputs(void *ctx, double t, const double *x, double *J) {
@@ -96,7 +98,7 @@ fmi2Status do_step(Instance *inst, double t, double H) {
         layer_log(inst, LOG_ERROR, "fmi2DoStep: %s in the step from t = %.17g s (h = %g s)%s",
                   rc == 2 ? "singular linear system" : "model equations failed", t, h, model_error_suffix(inst));
         c->state = ST_ERROR;
-        return fmi2Error;
+        return c->fatal ? fmi2Fatal : fmi2Error;
     }
     scatter_states(inst, inst->x);
     c->time = t + H;

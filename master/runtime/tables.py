@@ -405,12 +405,11 @@ class CompiledPlan:
         t, t1 = pc.clock.time(e.point), pc.clock.time(e.point + 1)
         if e.code in (native.NOT_FINITE, native.DIVERGED):
             bad = self.outs[name][e.variable]
-            beyond = (
-                f": {e.value:.3g} is beyond {GROWTH_LIMIT:g} times its start magnitude"
-                if e.code == native.DIVERGED
-                else ""
-            )
-            return SimulationError(f"unstable: {name}.{bad} at t={t}{beyond} ({UNSTABLE_HINT})", name, t, bad)
+            if e.code == native.DIVERGED:
+                what = f"{e.value:.3g} is beyond {GROWTH_LIMIT:g} times its start magnitude"
+            else:
+                what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
+            return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
         step = f"in the step from t={t} to t={t1}"
         if e.code == native.TERMINATE:
             return SimulationError(f"{fmu.describe(f'asked to terminate at t={t1}')} {step}", name, t)
