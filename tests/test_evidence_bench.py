@@ -42,3 +42,25 @@ def test_pareto_front_and_speedup():
     assert [(r.wall_time, r.error) for r in pareto(rows)] == [(0.2, 0.5), (0.3, 0.05)]
     b, best = speedup(rows, base.config)
     assert b is base and best.wall_time == pytest.approx(0.3)
+
+
+def test_bench_works_on_any_scene_and_writes_under_results(tmp_path, capsys, monkeypatch):
+    """A scene without a profile: a sweep derived from the scenario (its macro step and orders),
+    written to results/bench-SCENE/ under the current folder (never into tracked files), named."""
+    scene = Path(__file__).resolve().parent / "scenarios" / "step_force.ssd"
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", str(scene), "--quick", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote results/bench-step_force/" in out
+    rows = list(csv.DictReader(open(tmp_path / "results" / "bench-step_force" / "step_force-quick.csv")))
+    steps = sorted(float(r["macro_step_s"]) for r in rows)
+    assert len(rows) == 4 and steps[-1] == pytest.approx(8 * steps[0])  # 2 H and H / 4 around its H
+    # a smaller macro step gives a smaller coupling error (first order in H at order 0)
+    by_step = {float(r["macro_step_s"]): float(r["error_max"]) for r in rows if r["order"] == "0"}
+    assert by_step[min(by_step)] < by_step[max(by_step)]
+
+
+def test_bench_names_a_bad_scenario_in_one_line(tmp_path, capsys):
+    assert main(["bench", str(tmp_path / "nothing.ssd")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "nothing.ssd" in err and len(err.strip().splitlines()) == 1

@@ -37,6 +37,7 @@ from master.scenario.model import Scenario
 
 EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
 SOLVER_NAMES = {1: "euler", 2: "ab2", 3: "ab3", 4: "rk4", 5: "si-euler", 6: "si-midpoint"}
+GENERIC_FAMILIES = ("scene", "macro-step", "order", "coupling", "backend")  # sweeps of generic_profile
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,8 @@ class Config:
         how = f"{self.backend}" + (f", {self.coupling}" if self.coupling else "")
         if self.single_rate:
             return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {how}"
+        if self.family in GENERIC_FAMILIES:
+            return f"H={h:g}, order {self.order}, {how}"
         return (
             f"{SOLVER_NAMES[self.mech_solver]} H={h:g} + {SOLVER_NAMES[self.ctrl_solver]} "
             f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {how}"
@@ -85,6 +88,7 @@ class Profile:
     unstable_step: Fraction | None = None  # a single-rate step past the stability limit (quick sweep)
     linearize_at: float = 0.1  # s: operating point of the linear stability analysis
     variables: tuple[str, ...] | None = None  # the error's variables (None: all recorded)
+    generic: bool = False  # a scene without a profile: its own FMUs, steps and ratios swept as they are
 
 
 F = Fraction
@@ -130,16 +134,38 @@ PROFILES: dict[str, Profile] = {
 
 
 def profile_for(sc: Scenario) -> Profile:
-    """The bench profile of a scene, by scenario name or folder name."""
+    """The bench profile of a scene, by scenario name or folder name; for any other scene one
+    derived from the scenario itself (`generic_profile`)."""
     for key in (sc.name, Path(sc.path).parent.name, Path(sc.path).stem):
         if key in PROFILES:
             return PROFILES[key]
-    names = ", ".join(sorted(PROFILES))
-    raise ValueError(f"{sc.path}: no bench profile for scene {sc.name!r} (known: {names})")
+    return generic_profile(sc)
+
+
+def generic_profile(sc: Scenario) -> Profile:
+    """A sweep any scene allows, with nothing assumed of its FMUs: its macro step H times 2, 1,
+    1/2, 1/4 (its components' step ratios kept), every extrapolation order 0..3, both couplings and
+    both backends; the baseline is the scene as written. Errors are measured on its record grid
+    (a multiple of 2 H, so that every swept step hits it) against the reference solution."""
+    H = sc.macro_step
+    order = max((c.extrapolation_order for c in sc.components), default=0)
+    base = Config("scene", H, order=order)
+    return Profile(
+        mechanics=tuple(c.name for c in sc.components),
+        control=(),
+        record_interval=_lcm(sc.record_interval or H, 2 * H),
+        baseline=base,
+        single_steps=(),
+        macro_steps=(2 * H, H, H / 2, H / 4),
+        base=base,
+        generic=True,
+    )
 
 
 def configurations(p: Profile, quick: bool = False) -> list[Config]:
     """The sweep: the full one for the docs, or a handful of runs (`quick`) for tests."""
+    if p.generic:
+        return _unique(_generic_configurations(p, quick))
     b = p.base
     if quick:
         out = [
@@ -168,8 +194,29 @@ def configurations(p: Profile, quick: bool = False) -> list[Config]:
     for coupling in ("jacobi", "gauss-seidel"):
         out += [dataclasses.replace(c, family="coupling", coupling=coupling) for c in (p.baseline, b)
                 if c.coupling != coupling]  # fmt: skip
+    return _unique(out)
+
+
+def _generic_configurations(p: Profile, quick: bool) -> list[Config]:
+    b = p.base
+    if quick:
+        h_big, h_small = p.macro_steps[0], p.macro_steps[-1]
+        return [b, dataclasses.replace(b, family="macro-step", macro_step=h_big),
+                dataclasses.replace(b, family="macro-step", macro_step=h_small),
+                dataclasses.replace(b, family="order", order=(b.order + 1) % 4)]  # fmt: skip
+    out = [b] + [dataclasses.replace(b, family="macro-step", macro_step=h) for h in p.macro_steps]
+    out += [dataclasses.replace(b, family="order", order=k) for k in range(4)]
+    out += [
+        dataclasses.replace(b, family="order", order=k, macro_step=h) for k in range(4) for h in p.macro_steps
+    ]
+    out += [dataclasses.replace(b, family="coupling", coupling=c) for c in ("jacobi", "gauss-seidel")]
+    out += [dataclasses.replace(b, family="backend", backend="parallel")]
+    return out
+
+
+def _unique(configs: list[Config]) -> list[Config]:
     seen, unique = set(), []
-    for c in out:
+    for c in configs:
         key = dataclasses.replace(c, family="")
         if key not in seen:
             seen.add(key)
@@ -179,6 +226,20 @@ def configurations(p: Profile, quick: bool = False) -> list[Config]:
 
 def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     """The scene with the configuration's steps, ratios, orders and solvers."""
+    if p.generic:  # its own FMUs and ratios: only the macro step, the orders and the coupling change
+        comps = tuple(dataclasses.replace(comp, extrapolation_order=c.order) for comp in sc.components)
+        conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
+        coupling = c.coupling or sc.coupling
+        return dataclasses.replace(
+            sc,
+            coupling=coupling,
+            order=(sc.order or tuple(x.name for x in sc.components)) if coupling == "gauss-seidel" else (),
+            components=comps,
+            connections=conns,
+            macro_step=c.macro_step,
+            record_interval=p.record_interval,
+            stop_time=_whole(sc, p.record_interval),
+        )
     comps = []
     for comp in sc.components:
         ctrl = comp.name in p.control and not c.single_rate
@@ -207,6 +268,12 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     )
 
 
+def _whole(sc: Scenario, step: Fraction) -> Fraction:
+    """The scene's stop time, brought down to a whole number of `step` after its start (s)."""
+    n = (sc.stop_time - sc.start_time) // step
+    return sc.start_time + max(n, 1) * step
+
+
 def _lcm(a: Fraction, b: Fraction) -> Fraction:
     """Least common multiple of two positive rationals (s)."""
     num = a.numerator * b.numerator // math.gcd(a.numerator, b.numerator)
@@ -215,11 +282,12 @@ def _lcm(a: Fraction, b: Fraction) -> Fraction:
 
 def base_scene(sc: Scenario, p: Profile) -> Scenario:
     """The scene as the reference sees it: the profile's record grid and stop time."""
+    stop = p.stop_time if p.stop_time is not None else sc.stop_time
     return dataclasses.replace(
         sc,
         macro_step=p.record_interval,
         record_interval=p.record_interval,
-        stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
+        stop_time=_whole(sc, p.record_interval) if p.generic else stop,
     )
 
 
@@ -309,10 +377,11 @@ def write_csv(rows: list[Row], path: Path) -> None:
         for r in rows:
             c = r.config
             ctrl_step = float(c.macro_step) / c.ratio
-            ctrl = SOLVER_NAMES[c.ctrl_solver] if not c.single_rate else ""
+            generic = c.family in GENERIC_FAMILIES
+            ctrl = SOLVER_NAMES[c.ctrl_solver] if not (c.single_rate or generic) else ""
             w.writerow(
                 [c.family, c.label, c.backend, f"{float(c.macro_step):g}", f"{ctrl_step:g}", c.ratio, c.order,
-                 SOLVER_NAMES[c.mech_solver], ctrl,
+                 "" if generic else SOLVER_NAMES[c.mech_solver], ctrl,
                  f"{r.wall_time:.4g}", f"{r.error:.3e}", f"{r.end_error:.3e}", r.worst_variable, r.stable,
                  id(r) in front, f"{r.rho:.6f}", r.status]
             )  # fmt: skip
@@ -327,7 +396,7 @@ def plot(rows: list[Row], path: Path, title: str) -> None:
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
     markers = {"single-rate": "s", "dual-rate": "o", "order": "^", "control-solver": "D", "mech-solver": "v",
-               "backend": "P", "coupling": "*"}  # fmt: skip
+               "backend": "P", "coupling": "*", "scene": "o", "macro-step": "s"}  # fmt: skip
     stable = [r for r in rows if r.stable]
     top = max([r.error for r in stable], default=1.0) * 3.0
     for fam, mk in markers.items():
@@ -360,13 +429,19 @@ def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int
     p = profile_for(sc)
     base = base_scene(sc, p)
     ref = reference(base)
-    lin = linearize(apply(sc, p, p.base), t=p.linearize_at)
+    lin = None if p.generic else linearize(apply(sc, p, p.base), t=p.linearize_at)  # FMUs of our own
     rows = []
-    for c in configurations(p, quick):
+    configs = configurations(p, quick)
+    for i, c in enumerate(configs):
+        if sys.stderr.isatty():  # a full sweep takes a while
+            print(f"\r[{i + 1}/{len(configs)}] {c.label:<70}", end="", file=sys.stderr, flush=True)
         row = measure(sc, p, c, ref, repeats)
-        row.rho = spectral_radius(linear_scheme(lin, p, c), float(c.macro_step))
+        if lin is not None:
+            row.rho = spectral_radius(linear_scheme(lin, p, c), float(c.macro_step))
         rows.append(row)
-    stem = Path(sc.path).parent.name + ("-quick" if quick else "")
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    stem = (Path(sc.path).stem if p.generic else Path(sc.path).parent.name) + ("-quick" if quick else "")
     write_csv(rows, out_dir / f"{stem}.csv")
     plot(rows, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)")
     return rows
