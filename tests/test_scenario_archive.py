@@ -187,3 +187,15 @@ def test_a_source_name_too_long_for_the_file_system(tmp_path: Path):
         shutil.copy(SCENE / f, tmp_path / f)
     problems = validate(tmp_path / "x.ssd")
     assert any("not a usable file name" in str(p) for p in problems), [str(p) for p in problems]
+
+
+def test_a_zip_bomb_is_refused_unpacked(tmp_path: Path, cache: Path):
+    members = oscillator_members()
+    members["resources/zeros.bin"] = bytes(100 << 20)  # 100 MiB of zeros pack into about 100 KiB
+    archive = tmp_path / "bomb.ssp"
+    with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    problems = validate(archive)
+    assert any("times" in str(p) and "unpacks" in str(p) for p in problems), [str(p) for p in problems]
+    assert not cache.exists() or not any(d for d in cache.iterdir() if not d.name.startswith("."))

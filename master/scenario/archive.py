@@ -16,6 +16,7 @@ from .problems import Problems
 SSD_NAME = "SystemStructure.ssd"
 MAX_UNPACKED_BYTES = 512 << 20  # 512 MiB: a larger archive is more likely a zip bomb than a scene
 CACHE_BYTES = 1 << 30  # the unpacked archives kept, least recently used evicted beyond this
+MAX_RATIO = 200  # unpacked / packed size beyond which (and beyond 64 MiB) an archive is a zip bomb
 METHODS = {zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA}
 
 
@@ -64,8 +65,15 @@ def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
                 bad = True
         if bad:
             return None
-        if sum(i.file_size for i in members) > MAX_UNPACKED_BYTES:
+        unpacked = sum(i.file_size for i in members)
+        if unpacked > MAX_UNPACKED_BYTES:
             problems.add(shown, None, "archive", f"unpacks to more than {MAX_UNPACKED_BYTES} bytes")
+            return None
+        packed = archive.stat().st_size
+        if unpacked > 64 << 20 and unpacked > MAX_RATIO * packed:
+            problems.add(
+                shown, None, "archive", f"unpacks {packed} bytes into {unpacked}: more than {MAX_RATIO} times"
+            )
             return None
         if SSD_NAME not in zf.namelist():
             problems.add(shown, None, "archive", f"has no {SSD_NAME} at its root")
