@@ -215,6 +215,15 @@ def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_pa
     assert shm_entries() <= shm
 
 
+def test_a_worker_of_several_slow_components_is_not_a_hang():
+    """The step timeout bounds one component's macro step, not a worker's: three components of
+    0.25 s per step in one worker (0.75 s per macro step) under a 0.5 s timeout finish."""
+    slow = {f"c{i}": {"cost_us": 250_000, "solver": 1} for i in range(3)}
+    r = api.run(lags(3, stop=Fraction(3, 100), params=slow), backend="serial", step_timeout=0.5)
+    assert r.summary.macro_steps == 3
+    assert_no_children()
+
+
 @pytest.mark.parametrize(
     "params",
     [{"c1": {"mode": 7}}, {"c1": {"no_such": 1.0}}, {"c1": {"mode": 4, "at_time": 0.25}}],

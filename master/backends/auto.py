@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 
 from master.backends.component import SimulationError
-from master.backends.worker import cpu_count
+from master.backends.worker import WorkerFailure, cpu_count
 from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, worker_groups
 from master.fmu import FmuError
 from master.recorder import Recorder
@@ -52,7 +52,7 @@ def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[flo
             n = be.run(n, n1, rec, TRIAL_BUDGET)
         if n < n1:  # the budget ran out: stop, and count what was done
             be.cancel()
-            be.pool.wait()
+            be.pool.wait(be._supervise)
             n = be.position
         return setup, be.stepping_span() / max(n - n0, 1)
     finally:
@@ -73,7 +73,7 @@ def choose_backend(plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT) -> tu
     try:
         setup_s, serial = trial(plan, [[pc.name for pc in plan.components]], step_timeout)
         setup_p, parallel = trial(plan, groups, step_timeout)
-    except (SimulationError, FmuError) as e:  # the run itself will say what fails, and where
+    except (SimulationError, FmuError, WorkerFailure) as e:  # the run itself will say what fails, and where
         return "serial", f"a trial failed ({e})"
     facts = (
         f"serial {serial * 1e6:.1f} us/step, parallel {parallel * 1e6:.1f} us/step measured "

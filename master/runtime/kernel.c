@@ -154,14 +154,15 @@ static int get_real(const mk_component *c, double *v) {
     return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v);
 }
 
-/* doStep; *terminate is set when an FMI 3 FMU asks to end the simulation. */
-static int do_step(const mk_component *c, double t, bool *terminate) {
+/* doStep; *terminate is set when an FMI 3 FMU asks to end the simulation. final: no state from
+ * before t will be restored (false during start-up, whose sweeps restore a saved state). */
+static int do_step(const mk_component *c, double t, bool final, bool *terminate) {
     if (c->fmi == 3) {
         bool event = false, early = false;
         double last = t;
-        return ((fmi3_do_step *)c->do_step)(c->instance, t, c->h, true, &event, terminate, &early, &last);
+        return ((fmi3_do_step *)c->do_step)(c->instance, t, c->h, final, &event, terminate, &early, &last);
     }
-    return ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, 1);
+    return ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, final ? 1 : 0);
 }
 
 static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
@@ -303,37 +304,38 @@ static int32_t wait_ring(mk_kernel *k, const mk_component *c, int64_t n) {
     return MK_DONE;
 }
 
-/* Component ci through macro step n: `ratio` communication steps, outputs into its history.
- * Relaxed start-up sweeps read the previous sweep's histories, which a barrier has completed. */
-static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
+/* What this worker is doing, for the supervisor's hang detection: the component whose FMU calls
+ * began at busy[0] (CLOCK_MONOTONIC ns), or 0 while it waits for peers or the clock. */
+static void mark_busy(mk_kernel *k, int32_t ci) {
+    if (!k->shared) return;
+    k->shared->busy[1] = ci;
+    __atomic_store_n(&k->shared->busy[0], now_ns(), __ATOMIC_RELEASE);
+}
+
+static void mark_idle(mk_kernel *k) {
+    if (k->shared) __atomic_store_n(&k->shared->busy[0], 0, __ATOMIC_RELEASE);
+}
+
+/* The `ratio` communication steps of component ci in macro step n, inputs from u. */
+static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
     const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
-    mk_shared *sh = relaxed ? NULL : k->shared;
-    if (sh && wait_inputs(k, c, n)) return MK_ABORTED;
-    fill_inputs(k, c, n, relaxed);
-    if (sh) {
-        publish(&sh->consumed[ci], n + 1);
-        if (wait_ring(k, c, n)) return MK_ABORTED;
-    }
+    const bool final = n >= k->startup_steps;
     int64_t j = n * kc;
-    int64_t begun = now_ns();
-    if (k->shared) {
-        k->shared->busy[1] = ci;
-        __atomic_store_n(&k->shared->busy[0], begun, __ATOMIC_RELEASE);
-    }
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
         double t = point_time(c, j);
         bool terminate = false;
         int st;
-        int64_t t0 = m ? now_ns() : begun;
+        int64_t t0 = now_ns();
         if (n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
         if (c->n_derivatives &&
             (st = ((fmi2_set_derivatives *)c->set_derivatives)(c->instance, c->derivative_vrs,
                                                                 (size_t)c->n_derivatives, c->derivative_orders,
                                                                 u + (size_t)c->n_values * n_in)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
-        if ((st = do_step(c, t, &terminate)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
+        if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (terminate) return fail(k, MK_TERMINATE, ci, MK_CALL_DO_STEP, st, j);
         if (c->feedthrough && (st = set_real(c, u + n_in)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
@@ -344,11 +346,26 @@ static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
     }
-    if (k->shared) {
-        __atomic_store_n(&k->shared->busy[0], 0, __ATOMIC_RELEASE);
-        if (!relaxed) publish(&k->shared->published[ci], n + 1);
-    }
     return MK_DONE;
+}
+
+/* Component ci through macro step n: its inputs, then its communication steps, outputs into its
+ * history. Relaxed start-up sweeps read the previous sweep's histories, which a barrier has
+ * completed. */
+static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
+    mk_component *c = &k->components[ci];
+    mk_shared *sh = relaxed ? NULL : k->shared;
+    if (sh && wait_inputs(k, c, n)) return MK_ABORTED;
+    fill_inputs(k, c, n, relaxed);
+    if (sh) {
+        publish(&sh->consumed[ci], n + 1);
+        if (wait_ring(k, c, n)) return MK_ABORTED;
+    }
+    mark_busy(k, ci);
+    int32_t code = communication_steps(k, ci, n);
+    mark_idle(k);
+    if (code == MK_DONE && sh) publish(&sh->published[ci], n + 1);
+    return code;
 }
 
 /* Start-up macro step n: step it, then repeat it `startup_sweeps` times from the saved FMU states
@@ -359,7 +376,9 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     for (; saved < k->n_components; saved++) {
         mk_component *c = &k->components[saved];
         if (!c->local) continue;
+        mark_busy(k, saved);
         int st = ((fmi_get_state *)c->get_state)(c->instance, &c->saved_state);
+        mark_idle(k);
         if (st > STATUS_OK) {
             code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->ratio);
             break;
@@ -377,7 +396,9 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
             mk_component *c = &k->components[i];
             if (!c->local) continue;
+            mark_busy(k, i);
             int st = ((fmi_set_state *)c->set_state)(c->instance, c->saved_state);
+            mark_idle(k);
             if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
             else code = macro_step(k, i, n, true);
         }
@@ -386,7 +407,9 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     for (int32_t i = 0; i < saved; i++) {
         mk_component *c = &k->components[i];
         if (!c->local) continue;
+        mark_busy(k, i);
         int st = ((fmi_free_state *)c->free_state)(c->instance, &c->saved_state);
+        mark_idle(k);
         c->saved_state = NULL;
         if (st > STATUS_OK && code == MK_DONE) code = fail(k, MK_FMI_ERROR, i, MK_CALL_FREE_STATE, st, n * c->ratio);
     }
@@ -431,7 +454,9 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
             continue;
         }
         int64_t t0 = now_ns();
+        mark_busy(k, rec->component);
         int st = get_scalar(c, rec->kind, rec->index, &row[rec->column]);
+        mark_idle(k);
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         if (st > STATUS_OK) {
             fail(k, MK_FMI_ERROR, rec->component, rec->kind == MK_INTEGER ? MK_CALL_GET_INTEGER : MK_CALL_GET_BOOLEAN,

@@ -1,8 +1,8 @@
 """The compiled stepping kernel (kernel.c) and its ctypes mirror of kernel.h.
 
 `pip install` builds kernel.c into `_kernel*.so` beside this file (setup.py). In a development
-checkout a kernel.c or kernel.h newer than the built library is rebuilt here with the system C compiler, so
-an edit never runs stale code. `library()` checks that the structure sizes agree with C.
+checkout a kernel.c or kernel.h newer than the built library is rebuilt here with the system C
+compiler, so an edit never runs stale code. `library()` checks that the structure sizes agree with C.
 """
 
 from __future__ import annotations
@@ -19,6 +19,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
 HEADER = HERE / "kernel.h"
+# a source checkout (pyproject.toml beside the package): rebuilt when stale; an installed package
+# uses the library pip built (its kernel.c, shipped for reference, may be unpacked after it)
+CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
@@ -232,9 +235,12 @@ def _compile() -> Path:
 def library() -> C.CDLL:
     """The kernel library with typed functions, built first where needed."""
     path = _built()
-    sources = [p.stat().st_mtime for p in (SOURCE, HEADER) if p.exists()]
-    if path is None or (sources and max(sources) > path.stat().st_mtime):
-        path = _compile()
+    if CHECKOUT:  # a developer's edit of kernel.c must not run stale code
+        sources = [p.stat().st_mtime for p in (SOURCE, HEADER) if p.exists()]
+        if path is None or (sources and max(sources) > path.stat().st_mtime):
+            path = _compile()
+    elif path is None:
+        raise KernelBuildError(f"{HERE}: the kernel library is missing; reinstall the package")
     lib = C.CDLL(str(path))
     sizes = (_i64 * len(STRUCTS))()
     lib.mk_layout(sizes)

@@ -451,22 +451,23 @@ def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_
 
 def pacing_stats(pacings: list[native.Pacing]) -> dict[str, float] | None:
     """Real-time lateness (s) over the paced frames of every worker: p50, p99, p99.9 (upper edges
-    of 1 us bins), worst; frames, overruns (frames whose work ended after they were due), idle (s
-    spent waiting for the clock). None when unpaced."""
+    of 1 us bins, over every worker's frames), worst; frames and overruns (frames whose work ended
+    after they were due) of the worker with the most, idle (s spent waiting for the clock) of the
+    worker that waited longest. None when unpaced."""
     paced = [p for p in pacings if p.factor > 0]
     if not paced:
         return None
     hist = sum(np.frombuffer(p.histogram, dtype=np.int64) for p in paced)
     cum = np.cumsum(hist)
-    frames = int(cum[-1])
+    frames = int(cum[-1])  # worker-frames
     worst = max(p.worst_ns for p in paced) * 1e-9
 
     def quantile(q: float) -> float:
         return min(float(np.searchsorted(cum, q * frames) + 1) * 1e-6, worst) if frames else 0.0
 
     return {
-        "frames": frames,
-        "overruns": sum(int(p.overruns) for p in paced),
+        "frames": max(int(p.frames) for p in paced),
+        "overruns": max(int(p.overruns) for p in paced),
         "p50": quantile(0.5),
         "p99": quantile(0.99),
         "p99.9": quantile(0.999),
