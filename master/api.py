@@ -7,6 +7,7 @@ result.data["mass1.x"], result.summary.real_time_factor
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import os
 from fractions import Fraction
@@ -207,6 +208,7 @@ def run(
         except SimulationError as e:
             summary = e.summary  # type: ignore[attr-defined]
             summary.output = str(output) if output is not None else None
+            _write_metadata(output, summary, sc, p)
             e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
             raise
         except BaseException:
@@ -215,6 +217,7 @@ def run(
         finally:
             be.close()
     summary.output = str(output) if output is not None else None
+    _write_metadata(output, summary, sc, p)
     result = RunResult(recorder, summary)
     if plot is not None:
         from master.recorder import plot_result
@@ -224,6 +227,31 @@ def run(
         except (OSError, ValueError) as e:  # PIL raises either for a path it cannot write
             raise UsageError(f"--plot {plot}: cannot write the plot there ({e})") from None
     return result
+
+
+def metadata_path(csv: str | Path) -> Path:
+    """The results' metadata beside a results CSV file: same name, .json."""
+    return Path(csv).with_suffix(".json")
+
+
+def _write_metadata(output: str | Path | None, summary, sc: Scenario, p: Plan) -> None:
+    """Beside the CSV: the run summary (with the real-time lateness histogram) and each column's
+    unit, as JSON. A metadata file that cannot be written costs the run nothing but a warning."""
+    if output is None:
+        return
+    meta = {
+        "scenario": str(sc.path),
+        "units": _units(sc, p.record),
+        "summary": dataclasses.asdict(summary)
+        | {
+            "real_time_factor": summary.real_time_factor,
+            "overhead_per_macro_step": summary.overhead_per_macro_step,
+        },
+    }
+    try:
+        metadata_path(output).write_text(json.dumps(meta, indent=1, default=str) + "\n")
+    except OSError as e:
+        log.warning("%s: metadata not written (%s)", metadata_path(output), e.strerror or e)
 
 
 def _units(sc: Scenario, record: tuple[tuple[str, str], ...]) -> dict[str, str | None]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import os
 import sys
@@ -249,7 +250,12 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
                     f"{csv}: no column {missing[0]!r}; columns: {', '.join(data.dtype.names)}"
                 )
         png = Path(args.output) if args.output else csv.with_suffix(".png")
-        plot_result(data, png, title=csv.stem, columns=args.record)
+        units = None
+        try:  # the run's metadata beside the CSV gives each column's unit: one panel per unit
+            units = json.loads(api.metadata_path(csv).read_text())["units"]
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+        plot_result(data, png, title=csv.stem, columns=args.record, units=units)
         print(f"wrote {png}")
         return 0
     raise api.UsageError(f"unknown command {args.command}")

@@ -119,6 +119,7 @@ class RunSummary:
     lateness: dict[str, float] | None = (
         None  # --real-time: frame lateness quantiles "p50", "p99", "p99.9" (s)
     )
+    lateness_histogram: list[tuple[int, int]] | None = None  # --real-time: (us, frames), nonzero bins
     output: str | None = None
     notes: list[str] = field(default_factory=list)  # what the run could not do as asked
 

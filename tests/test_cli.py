@@ -1,5 +1,6 @@
 """Command-line smoke tests through real subprocesses (`python -m master ...`)."""
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -221,3 +222,16 @@ def test_readme_usage_block_lists_every_run_option():
     spellings = [[w.strip(",") for w in ln.split() if w.startswith("-")] for ln in lines]
     missing = sorted(s[0] for s in spellings if s[0] != "-h" and not any(w in usage for w in s))
     assert not missing, f"README usage block lacks {missing}"
+
+
+def test_results_metadata_beside_the_csv(decay, tmp_path):
+    """out.json beside out.csv: each column's unit and the run summary, with the real-time
+    lateness histogram of a paced run."""
+    out = tmp_path / "out.csv"
+    r = master("run", str(decay), "-o", str(out), "--real-time", "10", "-q")
+    assert r.returncode == 0, r.stderr
+    meta = json.loads((tmp_path / "out.json").read_text())
+    assert meta["units"] == {"d.y": None}  # the Dahlquist FMU's y has no unit
+    s = meta["summary"]
+    assert s["stop_reason"] == "finished" and s["macro_steps"] == 100
+    assert sum(n for _, n in s["lateness_histogram"]) >= 100 and s["lateness"]["p50"] >= 0

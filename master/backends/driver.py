@@ -119,6 +119,7 @@ def execute(
             summary.worst_lateness = pacing["worst"]
             summary.idle_time = pacing["idle"]
             summary.lateness = {q: pacing[q] for q in ("p50", "p99", "p99.9")}
+            summary.lateness_histogram = pacing.get("histogram")
             summary.notes += pacing.get("notes", [])
     except SimulationError as e:
         summary.stop_reason = f"failed: {e}"

@@ -473,6 +473,7 @@ def pacing_stats(pacings: list[native.Pacing]) -> dict[str, float] | None:
         "p99.9": quantile(0.999),
         "worst": worst,
         "idle": max(p.idle_ns for p in paced) * 1e-9,
+        "histogram": [(int(us), int(n)) for us, n in enumerate(hist) if n],  # (lateness us, frames)
     }
 
 
