@@ -210,6 +210,11 @@ def build_plan(
                 f"(FMI {cap.fmi_version}); it steps {c.step_ratio} times per macro step instead"
             )
         k = 1 if interp else c.step_ratio
+        if interp and c.step_ratio > 1:
+            notes.append(
+                f"{c.name}: one doStep per macro step with its inputs as polynomials; its communication step "
+                f"{float(H / c.step_ratio):g} s is its internal step"
+            )
         comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0)
 
     # links: group connections by (source, consumer, order)

@@ -113,7 +113,8 @@ def test_parameter_precedence_file_then_inline_then_system_then_overrides():
     # mass1.ssv: m c d = 1, x0 = 0.5, internal_step; the inline set (written first) still wins: x0 = 1
     assert m1.parameters == {"m": 1.0, "c": 1.0, "d": 1.0, "x0": 1.0, "internal_step": 0.0025, "solver": 3}
     # coupling.ssv: dc = 0.5; the system-level binding (prefix "mass2.") wins: dc = 1
-    assert m2.parameters == {"m": 1.0, "c": 1.0, "d": 1.0, "cc": 1.0, "dc": 1.0}
+    # and its communication step 0.0025 s with interpolated inputs becomes its internal step
+    assert m2.parameters == {"m": 1.0, "c": 1.0, "d": 1.0, "cc": 1.0, "dc": 1.0, "internal_step": 0.0025}
     over = load(
         OSCILLATOR, {"mass2.dc": "0.25", "mass1.solver": "rk4", "mass1.F": "2", "mass2.internal_step": "1e-3"}
     )

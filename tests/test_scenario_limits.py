@@ -49,3 +49,31 @@ def test_bad_numbers_are_one_problem_each_found_fast(old, new, said, tmp_path):
     assert any(said in str(p) for p in problems), [str(p) for p in problems]
     with pytest.raises(ScenarioError):
         api.load_scenario(ssd)
+
+
+def test_interpolated_inputs_keep_the_communication_step_as_internal_step():
+    """mass2 interpolates its inputs with communicationStep 0.0025 s: one doStep per macro step of
+    0.01 s, in four internal steps (not one, as the step ratio silently became before)."""
+    sc = api.load_scenario(SCENE / "oscillator.ssd")
+    m2 = sc.component("mass2")
+    assert m2.interpolate_inputs and m2.step_ratio == 4 and m2.parameters["internal_step"] == 0.0025
+    assert any("internal step" in note for note in api.plan(sc).notes)
+
+
+def test_interpolated_inputs_without_an_internal_step_are_refused(tmp_path):
+    """An FMU that can interpolate inputs but has no internal_step parameter cannot keep a step
+    ratio: validate says so (here msd with that parameter renamed in its model description)."""
+    import zipfile
+
+    from master.fmubuild import fmu_path
+
+    src, dst = fmu_path("msd"), tmp_path / "other.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'name="internal_step"', b'name="inner_step"')
+            zout.writestr(item, data)
+    ssd = mutated(tmp_path, 'source="project:msd"', 'source="other.fmu"')
+    problems = [str(p) for p in api.validate(ssd)]
+    assert any("communication steps per macro step would be lost" in p for p in problems), problems

@@ -96,6 +96,9 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     times = _experiment(ctx, root)
     setup = settings.read(ctx, root, system, times)
     params = bindings.read(ctx, system, overrides)
+    if setup is not None:  # an interpolating FMU's communication step becomes its internal step,
+        for name, h in setup.internal_step.items():  # unless a binding chose one
+            params.setdefault(name, {}).setdefault(settings.INTERNAL_STEP, float(h))
     loops.check(ctx, links)
     if problems.items or setup is None or times is None:
         return None

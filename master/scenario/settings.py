@@ -34,11 +34,13 @@ class Settings:
     interpolate_inputs: dict[str, bool] = field(default_factory=dict)
     group: dict[str, str] = field(default_factory=dict)
     connection_order: dict[tuple[str, str], int] = field(default_factory=dict)  # (comp, input) -> order
+    internal_step: dict[str, Fraction] = field(default_factory=dict)  # interpolating FMUs' substeps (s)
     record: tuple[tuple[str, str], ...] = ()
     record_interval: Fraction | None = None
     stimuli: tuple[Stimulus, ...] = ()
 
 
+INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
 MAX_STEP_RATIO = 100_000  # communication steps of one component per macro step
 MAX_MACRO_STEPS = 10**10  # macro steps of one run
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
@@ -201,8 +203,32 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
         # The global default only applies where the FMU can; an explicit request must be honoured.
         s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
+        k = s.step_ratio[name]
+        if s.interpolate_inputs[name] and can and k > 1:
+            _substeps(ctx, ce, s, name, comp.info.variables.get(INTERNAL_STEP), k)
         if "group" in attrs:
             s.group[name] = attrs["group"]
+
+
+def _substeps(ctx: Context, ce: etree._Element, s: Settings, name: str, var, k: int) -> None:
+    """An FMU that interpolates its inputs takes one doStep per macro step, so its communication
+    step H/k becomes its internal step (the parameter `internal_step` of the project's FMUs);
+    an FMU without one cannot keep it, which is a problem, not a silent ratio of 1."""
+    settable = (
+        var is not None
+        and var.kind in FLOATS
+        and var.causality == "parameter"
+        and var.variability != "constant"
+    )
+    if settable:
+        s.internal_step[name] = s.macro_step / k
+        return
+    ctx.at(
+        ce,
+        f"interpolateInputs: {name} takes one doStep per macro step, so its {k} communication steps "
+        f"per macro step would be lost ({name} has no {INTERNAL_STEP} parameter to take them); "
+        "drop the step ratio or interpolateInputs",
+    )
 
 
 def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
