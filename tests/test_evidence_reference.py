@@ -53,3 +53,16 @@ def test_unknown_parameter_is_named(tmp_path):
     comp = Component("d", fmu_path("dahlquist"), {"lambada": 1.0})
     with pytest.raises(ValueError, match="component 'd' has no variable 'lambada'"):
         integrate(Scenario(sc.path, "d", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10)))
+
+
+@pytest.mark.parametrize("split", ["displacement", "force"])
+def test_oscillator_reference_matches_the_matrix_exponential(split, tmp_path):
+    """The two-mass oscillator (two msd FMUs) through Model Exchange against expm(A t) z0, and
+    x1(10) against the benchmark's published value."""
+    from master.evidence.oscillator import SET_A, SET_A_X1_10, SET_A_Z0, scene
+
+    tr = integrate(scene(split=split, macro_step=Fraction(1, 10), path=tmp_path / "osc.ssd"))
+    exact = SET_A.exact(tr.time, SET_A_Z0)
+    for col, name in ((0, "mass1.x"), (1, "mass1.v")):
+        assert np.max(np.abs(tr.values[name] - exact[:, col])) < 1e-9, name
+    assert tr.values["mass1.x"][-1] == pytest.approx(SET_A_X1_10, abs=1e-10)
