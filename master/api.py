@@ -187,6 +187,8 @@ def run(
         log.info(note)
     with stop_signals():
         if cpus is not None:
+            if backend == "in-process":
+                raise UsageError("--cpus pins worker processes; --in-process runs without any")
             bad = sorted(set(cpus) - os.sched_getaffinity(0))
             if bad or not cpus:
                 raise UsageError(

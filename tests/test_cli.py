@@ -175,6 +175,8 @@ def test_version():
         ),
         ("zero-real-time", ["run", "{ssd}", "--real-time", "0"], 2, "expected a positive number"),
         ("bad-cpus", ["run", "{ssd}", "--cpus", "x"], 2, "expected processor numbers"),
+        ("foreign-cpus", ["run", "{ssd}", "--cpus", "4096"], 1, "not processors this process may use"),
+        ("cpus-in-process", ["run", "{ssd}", "--cpus", "0", "--in-process"], 1, "--in-process runs without"),
     ],
 )
 def test_bad_input_gives_one_line(case, args, code, said, decay, tmp_path):
