@@ -48,7 +48,8 @@ OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN, OP_REALTIME = range(1, 6)
 FIFO_PRIORITY = 50  # SCHED_FIFO priority of paced workers, where permitted
 MCL_CURRENT, MCL_FUTURE = 1, 2
 DEFAULT_STEP_TIMEOUT = 10.0  # s: one component's macro step taking longer than this is a hang
-ROW_CAPACITY = 16384  # rows of the results ring the master drains
+RING_BYTES = 16 << 20  # the results ring the master drains: at most this size ...
+RING_ROWS = (256, 16384)  # ... and between these many rows
 
 
 def worker_groups(plan: Plan) -> list[list[str]]:
@@ -182,6 +183,7 @@ class WorkerBackend:
         self.pool: WorkerPool | None = None
         self.tmp: str | None = None
         self.lib = native.library()
+        self.ring_rows = RING_ROWS[1]
         self.position = 0  # macro steps every component has completed
         self.drained = 0  # rows taken out of the ring
         self.running = False
@@ -197,7 +199,9 @@ class WorkerBackend:
             )
             for pc in self.plan.components
         }
-        self.memory = Memory(layout(self.plan, outs, len(self.groups), ROW_CAPACITY), shared=True)
+        row_bytes = 8 * (1 + len(self.plan.record))
+        self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
+        self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
         cpu = (lambda w: self.cpus[w % len(self.cpus)]) if self.cpus else (lambda w: None)
         processors = len(set(self.cpus)) if self.cpus else cpu_count()
@@ -297,7 +301,7 @@ class WorkerBackend:
         t = time.perf_counter()
         rate = (self.drained - rows_then) / max(t - t_then, 1e-6)
         self._rate = (t, self.drained)
-        return min(0.02, max(1e-3, 0.25 * ROW_CAPACITY / rate if rate > 0 else 0.02))
+        return min(0.02, max(1e-3, 0.25 * self.ring_rows / rate if rate > 0 else 0.02))
 
     def _drain(self, recorder: Recorder) -> None:
         """Move the rows every worker has completed from the ring to the recorder."""
