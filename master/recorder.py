@@ -122,6 +122,9 @@ class RunSummary:
     lateness_histogram: list[tuple[int, int]] | None = None  # --real-time: (us, frames), nonzero bins
     output: str | None = None
     notes: list[str] = field(default_factory=list)  # what the run could not do as asked
+    # per extrapolated connection: predicted vs produced sample at macro-step ends, "max" and
+    # "rms", relative to the signal's range (the coupling error estimate)
+    coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def real_time_factor(self) -> float:
@@ -155,6 +158,11 @@ class RunSummary:
         if self.lateness:
             quantiles = ", ".join(f"{q} {v * 1e6:.0f} us" for q, v in self.lateness.items())
             lines.append(f"  frame lateness: {quantiles}")
+        worst = sorted(self.coupling_errors.items(), key=lambda kv: -kv[1]["max"])[:6]
+        for name, e in worst:
+            lines.append(
+                f"  coupling error estimate {name}: max {e['max']:.2g}, rms {e['rms']:.2g} of its range"
+            )
         lines.extend(f"  note: {n}" for n in self.notes)
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")

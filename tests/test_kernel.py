@@ -4,6 +4,7 @@ Serial (the kernel) against the parallel backend's Python stepping, bit for bit,
 tests/test_parallel.py; here the kernel's own pieces are checked against their definitions.
 """
 
+import dataclasses
 import shutil
 import subprocess
 import sys
@@ -107,3 +108,29 @@ def test_paced_run_reports_a_lateness_histogram(echo):
     late = s.lateness
     assert late is not None and 0 <= late["p50"] <= late["p99"] <= late["p99.9"] <= s.worst_lateness
     assert s.idle_time > 0 and "frame lateness: p50" in str(s)
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 3])
+def test_coupling_error_estimate_is_its_definition(order):
+    """mass1.x -> mass2.x_in (Jacobi, order p): at each macro step end the sample the polynomial
+    through y(n - i), i <= p, predicted against the sample then produced; max and RMS over the
+    macro steps with full order, relative to the range of the samples seen (the last macro step
+    is not estimated). Recomputed here from the recorded mass1.x."""
+    from master.coupling import weights
+    from master.evidence.oscillator import scene
+
+    sc = scene(split="force", macro_step=Fraction(1, 20), stop_time=Fraction(3), order=order)
+    r = api.run(sc)
+    y = r.data["mass1.x"]
+    w = weights(order, 1, 1)
+    predicted = [sum(w[q] * y[n - 1 - q] for q in range(order + 1)) for n in range(order + 1, len(y) - 1)]
+    diff = np.abs(np.array(predicted) - y[order + 1 : len(y) - 1])
+    span = y[order : len(y) - 1].max() - y[order : len(y) - 1].min()
+    est = r.summary.coupling_errors["mass1.x -> mass2.x_in"]
+    assert est["max"] == pytest.approx(diff.max() / span, rel=1e-9)
+    assert est["rms"] == pytest.approx(np.sqrt(np.mean(diff**2)) / span, rel=1e-9)
+    if order:  # a higher order predicts better on this smooth signal
+        lower = api.run(dataclasses.replace(sc, components=tuple(
+            dataclasses.replace(c, extrapolation_order=order - 1) for c in sc.components
+        ))).summary.coupling_errors["mass1.x -> mass2.x_in"]  # fmt: skip
+        assert est["max"] < lower["max"]

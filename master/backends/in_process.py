@@ -13,7 +13,7 @@ from collections.abc import Callable
 from master.backends.component import open_fmu, output_names
 from master.fmu import Fmu
 from master.recorder import Recorder
-from master.runtime.tables import CompiledPlan, Memory, layout, pacing_stats
+from master.runtime.tables import CompiledPlan, Memory, coupling_errors, layout, pacing_stats
 from master.schedule import Plan
 
 
@@ -65,6 +65,10 @@ class InProcessBackend:
     def pacing(self) -> dict | None:
         """Real-time statistics (see `pacing_stats`), None when unpaced."""
         return pacing_stats([self.compiled.pacing]) if self.compiled is not None else None
+
+    def coupling_errors(self) -> dict[str, dict[str, float]]:
+        """The error estimate per extrapolated connection (`coupling_errors`)."""
+        return coupling_errors(self.plan, self.compiled.memory) if self.compiled is not None else {}
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""

@@ -37,6 +37,7 @@ from master.runtime.tables import (
     CompiledPlan,
     Memory,
     counter,
+    coupling_errors,
     layout,
     pacing_stats,
     ring_rows,
@@ -351,6 +352,10 @@ class WorkerBackend:
                 if err > 0
             ]
         return stats
+
+    def coupling_errors(self) -> dict[str, dict[str, float]]:
+        """The error estimate per extrapolated connection (`coupling_errors`)."""
+        return coupling_errors(self.plan, self.memory) if self.memory is not None else {}
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""

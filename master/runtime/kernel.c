@@ -221,6 +221,29 @@ static double stimulus_value(const mk_stimulus *s, double t) {
     return s->values[lo];
 }
 
+/* The coupling error estimate of link lk (see kernel.h) at the start of plain macro step n: the
+ * prediction made in macro step n - 1 against sample n k_source, which exists now; then the
+ * prediction of sample (n + 1) k_source from this macro step's window (still protected: the
+ * consumer has not yet released it). */
+static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t n_out, int64_t n) {
+    const int64_t base = n * lk->k_source;
+    const double *now = hist + (base % cap) * n_out;
+    for (int32_t i = 0; i < lk->n_cols; i++) {
+        double y = now[lk->columns[i]], *e = lk->error + 5 * i;
+        if (n > lk->n_plain) { /* a full-order prediction was made in macro step n - 1 */
+            double d = fabs(lk->predicted[i] - y);
+            if (!(d <= e[0])) e[0] = d;
+            e[1] += d * d;
+            e[2] += 1.0;
+        }
+        if (y < e[3]) e[3] = y;
+        if (y > e[4]) e[4] = y;
+        double acc = lk->predict[0] * y;
+        for (int32_t q = 1; q < lk->terms; q++) acc += lk->predict[q] * hist[((base - q) % cap) * n_out + lk->columns[i]];
+        lk->predicted[i] = acc;
+    }
+}
+
 /* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
  * then the stimuli. */
 static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
@@ -230,6 +253,7 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
         const mk_component *src = &k->components[lk->source];
         const double *hist = relaxed ? src->hist_previous : src->hist;
         const int64_t cap = src->cap, n_out = src->n_out, base = n * lk->k_source;
+        if (lk->predict && !relaxed && n >= lk->n_plain) estimate(lk, hist, cap, n_out, n);
         int32_t t = relaxed ? lk->n_plain + 1 + (n < lk->n_relaxed ? (int32_t)n : lk->n_relaxed)
                             : (n < lk->n_plain ? (int32_t)n : lk->n_plain);
         const int64_t *off = lk->offsets + (size_t)t * lk->terms * kc;

@@ -66,6 +66,13 @@ typedef struct {
     const double *weights;  /* [table][block][term][m] */
     const uint8_t *zero;    /* [table][block][m]: exactly 0.0 whatever the samples */
     const double *scale;    /* [block]: source step ** derivative order (1 for value blocks) */
+    /* The coupling error estimate of an extrapolated link: in macro step n its polynomial through
+     * samples n k_source - i (weights `predict`, i < terms) predicts sample (n + 1) k_source;
+     * in macro step n + 1 that sample is known. error[c]: max |prediction - sample|, sum of
+     * squares, count, and the smallest and largest sample seen (the signal's range). */
+    const double *predict; /* [terms], NULL: no estimate (a source that goes first) */
+    double *predicted;     /* [n_cols] */
+    double *error;         /* [n_cols][5] */
 } mk_link;
 
 /* A step or table signal on an input slot of its component (see master/coupling.py). */

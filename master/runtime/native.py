@@ -78,6 +78,9 @@ class Link(C.Structure):
         ("weights", C.POINTER(_f64)),
         ("zero", C.POINTER(C.c_uint8)),
         ("scale", C.POINTER(_f64)),
+        ("predict", C.POINTER(_f64)),
+        ("predicted", C.POINTER(_f64)),
+        ("error", C.POINTER(_f64)),
     ]
 
 

@@ -132,6 +132,7 @@ def layout(
     out["pacing"] = ((nw, pacing), "uint8")
     out["pace"] = ((2,), "float64")  # real-time factor (0: unpaced), clock origin (ns)
     out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
+    out["estimates"] = ((max(sum(len(lk.inputs) for lk in plan.links), 1), 5), "float64")  # see mk_link
     out["steps"] = ((nc,), "int64")
     out["fmu_time"] = ((nc,), "float64")
     return out
@@ -297,6 +298,7 @@ class CompiledPlan:
                 weights=_ptr(self._array(w, np.float64), C.c_double),
                 zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
                 scale=_ptr(self._array(scale, np.float64), C.c_double),
+                **self._estimate(lk),
             )
             slot += len(lk.inputs)
         c.n_links, c.links = len(links), c_links
@@ -318,6 +320,20 @@ class CompiledPlan:
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
+
+    def _estimate(self, lk: Link) -> dict:
+        """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
+        the source's next macro-step sample, and its rows of the shared statistics, reset."""
+        if lk.source_first:
+            return {}
+        rows = self.memory["estimates"][estimate_rows(self.plan, lk)]
+        rows[:] = 0.0
+        rows[:, 3], rows[:, 4] = np.inf, -np.inf
+        return {
+            "predict": _ptr(self._array(weights(lk.order, lk.k_source, 1), np.float64), C.c_double),
+            "predicted": _ptr(self._array(np.zeros(len(lk.inputs)), np.float64), C.c_double),
+            "error": _ptr(rows, C.c_double),
+        }
 
     def _record(self, column: int, comp: str, var: str) -> native.Record:
         i = self.names.index(comp)
@@ -502,3 +518,33 @@ class Memory:
         """Map every page into this process now (a forked worker calls it once too): page faults
         on the stepping path and in the master's drain cost up to a millisecond per run."""
         np.frombuffer(self.buffer, dtype=np.uint8)[::4096].sum()
+
+
+def estimate_rows(plan: Plan, lk: Link) -> slice:
+    """The rows of `lk`'s connections in memory["estimates"] (links in plan order)."""
+    start = 0
+    for other in plan.links:
+        if other is lk:
+            return slice(start, start + len(lk.inputs))
+        start += len(other.inputs)
+    raise KeyError(lk)
+
+
+def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
+    """Per extrapolated connection "source.output -> consumer.input": the largest ("max") and the
+    RMS ("rms") difference between the sample its polynomial predicted for each macro step's end
+    and the sample the source then produced, relative to the range the signal took (1 where it
+    stayed constant). The last macro step is not estimated."""
+    est = memory["estimates"]
+    out = {}
+    for lk in plan.links:
+        if lk.source_first:
+            continue
+        for o, i, row in zip(lk.outputs, lk.inputs, est[estimate_rows(plan, lk)], strict=True):
+            if row[2] > 0:
+                span = row[4] - row[3] if row[4] > row[3] else 1.0
+                out[f"{lk.source}.{o} -> {lk.consumer}.{i}"] = {
+                    "max": float(row[0] / span),
+                    "rms": float(np.sqrt(row[1] / row[2]) / span),
+                }
+    return out
