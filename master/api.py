@@ -116,24 +116,32 @@ def plan(sc: Scenario) -> Plan:
         except FmuError as e:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
+        cs = md.coSimulation
         caps[c.name] = Capability(
-            bool(md.coSimulation.canInterpolateInputs),
+            bool(cs.canInterpolateInputs),
             md.fmiVersion,
-            bool(md.coSimulation.canGetAndSetFMUstate),
+            bool(cs.canGetAndSetFMUstate),
+            bool(cs.canBeInstantiatedOnlyOncePerProcess),
+            bool(cs.needsExecutionTool),
         )
     return build_plan(sc, variables, caps)
 
 
 def _make_backend(name: str, p: Plan, step_timeout: float | None = None, cpus: list[int] | None = None):
-    from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, worker_groups
+    from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, separate, worker_groups
 
     timeout = step_timeout or DEFAULT_STEP_TIMEOUT
     if name == "in-process":
         from master.backends.in_process import InProcessBackend
 
+        if p.exclusive:
+            raise UsageError(
+                f"{', '.join(p.exclusive[0])}: their FMU can be instantiated only once per process; "
+                "--serial or --parallel give each its own worker"
+            )
         return InProcessBackend(p)
     if name == "serial":
-        return WorkerBackend(p, [[pc.name for pc in p.components]], timeout, cpus)
+        return WorkerBackend(p, separate([[pc.name for pc in p.components]], p), timeout, cpus, "serial")
     if name == "parallel":
         return WorkerBackend(p, worker_groups(p), timeout, cpus)
     if name == "auto":

@@ -29,6 +29,8 @@ class Capability:
     can_interpolate_inputs: bool = False
     fmi_version: str = "2.0"
     can_get_set_state: bool = False
+    once_per_process: bool = False  # canBeInstantiatedOnlyOncePerProcess
+    needs_execution_tool: bool = False
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,9 @@ class Plan:
     # `startup_sweeps` times from saved FMU states with relaxed windows (Link.window).
     startup_steps: int = 0
     startup_sweeps: int = 0
+    # components whose FMU may be instantiated only once per process, by FMU file: each set
+    # needs as many processes as it has members
+    exclusive: tuple[tuple[str, ...], ...] = ()
 
     def component(self, name: str) -> PlanComponent:
         for c in self.components:
@@ -330,6 +335,21 @@ def build_plan(
             raise _err(sc, f"record interval {ri} s must be a positive multiple of the macro step {H} s")
         every = int(ri / H)
 
+    by_file: dict[str, list[str]] = {}
+    for c in sc.components:
+        cap = capabilities.get(c.name, Capability())
+        if cap.once_per_process:
+            by_file.setdefault(str(c.fmu_path), []).append(c.name)
+        if cap.needs_execution_tool:
+            notes.append(
+                f"{c.name}: the FMU needs its execution tool (needsExecutionTool): it must be installed"
+            )
+    exclusive = tuple(tuple(names) for names in by_file.values() if len(names) > 1)
+    for names in exclusive:
+        notes.append(
+            f"{', '.join(names)}: their FMU can be instantiated only once per process: one worker each"
+        )
+
     return Plan(
         scenario=sc,
         components=tuple(comps[n] for n in order),
@@ -342,4 +362,5 @@ def build_plan(
         notes=tuple(notes),
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
+        exclusive=exclusive,
     )

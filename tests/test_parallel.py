@@ -244,12 +244,42 @@ def test_errors_read_as_in_the_serial_backend(params):
 
 
 def test_exclusive_fmu_runs_twice_only_in_workers():
-    """An FMU allowing one instance per process: serial fails, one worker per instance works."""
+    """An FMU allowing one instance per process that does not say so: serial (one worker) fails,
+    one worker per instance works."""
     sc = lags(2, params={"c0": {"exclusive": True}, "c1": {"exclusive": True}})
     with pytest.raises(Exception, match="another exclusive instance"):
         api.run(sc, backend="serial")
     d = api.run(sc, backend="parallel").data
     assert len(d) == 201
+    assert_no_children()
+
+
+def test_declared_once_per_process_gets_a_worker_per_instance(tmp_path):
+    """canBeInstantiatedOnlyOncePerProcess="true": every backend with workers gives each instance
+    its own, with the serial results; the in-process backend refuses in one line."""
+    import zipfile
+
+    src, once = fmu_path("crashtest"), tmp_path / "once.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(once, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(
+                    b"<CoSimulation ", b'<CoSimulation canBeInstantiatedOnlyOncePerProcess="true" '
+                )
+            zout.writestr(item, data)
+    sc = lags(3, params={f"c{i}": {"exclusive": True} for i in range(3)})
+    sc = dataclasses.replace(
+        sc, components=tuple(dataclasses.replace(c, fmu_path=once) for c in sc.components)
+    )
+    p = api.plan(sc)
+    assert p.exclusive == (("c0", "c1", "c2"),) and any("once per process" in n for n in p.notes)
+    serial = api.run(sc, backend="serial")
+    assert serial.summary.backend == "serial" and len(serial.data) == 201
+    parallel = api.run(sc, backend="parallel").data
+    assert all(np.array_equal(serial.data[k], parallel[k]) for k in parallel.dtype.names)
+    with pytest.raises(api.UsageError, match="only once per process"):
+        api.run(sc, backend="in-process")
     assert_no_children()
 
 

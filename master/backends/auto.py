@@ -12,7 +12,7 @@ import time
 
 from master.backends.component import SimulationError
 from master.backends.worker import WorkerFailure, cpu_count
-from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, worker_groups
+from master.backends.workers import DEFAULT_STEP_TIMEOUT, WorkerBackend, separate, worker_groups
 from master.fmu import FmuError
 from master.recorder import Recorder
 from master.schedule import Plan
@@ -71,7 +71,7 @@ def choose_backend(plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT) -> tu
     if plan.n_macro <= plan.startup_steps:
         return "serial", "no macro step to time"
     try:
-        setup_s, serial = trial(plan, [[pc.name for pc in plan.components]], step_timeout)
+        setup_s, serial = trial(plan, separate([[pc.name for pc in plan.components]], plan), step_timeout)
         setup_p, parallel = trial(plan, groups, step_timeout)
     except (SimulationError, FmuError, WorkerFailure) as e:  # the run itself will say what fails, and where
         return "serial", f"a trial failed ({e})"

@@ -59,7 +59,24 @@ def worker_groups(plan: Plan) -> list[list[str]]:
     for pc in plan.components:
         g = plan.scenario.component(pc.name).group
         groups.setdefault(f"group:{g}" if g else f"component:{pc.name}", []).append(pc.name)
-    return list(groups.values())
+    return separate(list(groups.values()), plan)
+
+
+def separate(groups: list[list[str]], plan: Plan) -> list[list[str]]:
+    """`groups` with every second, third ... instance of an FMU that may be instantiated only
+    once per process (Plan.exclusive) moved to a worker of its own."""
+    out: list[list[str]] = []
+    for names in groups:
+        kept, moved, seen = [], [], set()
+        for name in names:
+            same = next((s for s in plan.exclusive if name in s), None)
+            if same is not None and same in seen:
+                moved.append([name])
+            else:
+                kept.append(name)
+                seen.add(same)
+        out += [kept] + moved
+    return out
 
 
 class _Task:
@@ -162,7 +179,8 @@ class WorkerBackend:
     """Executes a Plan in worker processes (see the module docstring).
 
     groups: component names per worker (one group with all components: the serial backend);
-    cpus: processors to pin the workers to, worker w on cpus[w % len(cpus)] (None: no pinning).
+    cpus: processors to pin the workers to, worker w on cpus[w % len(cpus)] (None: no pinning);
+    name: what the run summary calls it (default: serial for one worker, else parallel).
     Use: `open()`, `initialize(recorder)`, `run(...)` ..., `close()`.
     """
 
@@ -172,11 +190,12 @@ class WorkerBackend:
         groups: list[list[str]],
         step_timeout: float = DEFAULT_STEP_TIMEOUT,
         cpus: list[int] | None = None,
+        name: str | None = None,
     ):
         self.plan = plan
         self.cpus = cpus
         self.groups = groups
-        self.name = "serial" if len(groups) == 1 else "parallel"
+        self.name = name or ("serial" if len(groups) == 1 else "parallel")
         self.step_timeout = step_timeout
         self.names = [pc.name for pc in plan.components]
         self.worker_of = {name: w for w, names in enumerate(groups) for name in names}
