@@ -10,11 +10,10 @@ from __future__ import annotations
 
 import ctypes
 import shutil
-import stat
 import tempfile
 import zipfile
 from dataclasses import dataclass
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
@@ -128,21 +127,23 @@ def feedthrough_outputs(md: ModelDescription) -> set[str]:
 
 
 def safe_extract(path: Path, dest: Path) -> Path:
-    """Extract the FMU archive `path` into `dest`; refuse members that would land outside it."""
+    """Extract the FMU archive `path` into `dest`; refuse unsafe members (the scenario layer's
+    check, master.scenario.archive.unsafe) and report damaged data as an FmuError."""
+    from master.scenario.archive import DAMAGED, unsafe
+
     dest = Path(dest).resolve()
-    with zipfile.ZipFile(path) as zf:
-        for info in zf.infolist():
-            name = info.filename
-            p = PurePosixPath(name)
-            if "\\" in name or p.is_absolute() or ".." in p.parts or ":" in name:
-                raise FmuError(f"{path}: unsafe path in archive: {name!r}")
-            mode = info.external_attr >> 16
-            if stat.S_ISLNK(mode):
-                raise FmuError(f"{path}: symbolic link in archive: {name!r}")
-            target = (dest / name).resolve()
-            if target != dest and dest not in target.parents:
-                raise FmuError(f"{path}: archive member escapes the extraction folder: {name!r}")
-        zf.extractall(dest)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                reason = unsafe(info)
+                if reason:
+                    raise FmuError(f"{path}: member {info.filename!r}: {reason}")
+                target = (dest / info.filename).resolve()
+                if target != dest and dest not in target.parents:
+                    raise FmuError(f"{path}: archive member escapes the extraction folder: {info.filename!r}")
+            zf.extractall(dest)
+    except DAMAGED as err:
+        raise FmuError(f"{path}: damaged archive: {err}") from None
     return dest
 
 

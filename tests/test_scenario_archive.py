@@ -199,3 +199,24 @@ def test_a_zip_bomb_is_refused_unpacked(tmp_path: Path, cache: Path):
     problems = validate(archive)
     assert any("times" in str(p) and "unpacks" in str(p) for p in problems), [str(p) for p in problems]
     assert not cache.exists() or not any(d for d in cache.iterdir() if not d.name.startswith("."))
+
+
+@pytest.mark.parametrize("how", ["traversal", "deflate"])
+def test_a_damaged_or_unsafe_fmu_is_reported_at_validate(tmp_path: Path, how):
+    """One zip check for .ssp and .fmu archives, at validate: a member path leaving the archive,
+    or data that does not read back, in the FMU of a component."""
+    fmu = tmp_path / "msd.fmu"
+    with zipfile.ZipFile(fmu_path("msd")) as src, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as dst:
+        for item in src.infolist():
+            dst.writestr(item.filename, src.read(item))
+        if how == "traversal":
+            dst.writestr("../escaped.txt", "x")
+    if how == "deflate":
+        _damage(fmu, "binaries/linux64/msd.so", "deflate")
+    for f in SCENE.glob("*.ssv"):
+        shutil.copy(f, tmp_path / f.name)
+    ssd = (SCENE / "oscillator.ssd").read_text().replace('source="msd"', 'source="msd.fmu"')
+    (tmp_path / "oscillator.ssd").write_text(ssd)
+    problems = [str(p) for p in validate(tmp_path / "oscillator.ssd")]
+    said = "escapes the archive" if how == "traversal" else "damaged"
+    assert any(said in p and "mass1" in p for p in problems), problems

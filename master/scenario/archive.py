@@ -26,7 +26,25 @@ def cache_root() -> Path:
     return Path(env) if env else Path(tempfile.gettempdir()) / "multirate-master-ssp"
 
 
-def _unsafe(info: zipfile.ZipInfo) -> str | None:
+DAMAGED = (OSError, zipfile.BadZipFile, zlib.error, EOFError, RuntimeError, NotImplementedError)
+
+
+def damaged(path: Path) -> str | None:
+    """Why the zip archive `path` (.ssp or .fmu) cannot be unpacked safely, or None: an unsafe
+    member, or data that does not read back (every member is read and its CRC checked)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                reason = unsafe(info)
+                if reason:
+                    return f'member "{info.filename}": {reason}'
+            bad = zf.testzip()
+    except DAMAGED as err:
+        return f"damaged archive: {err}"
+    return f'member "{bad}": damaged data (CRC)' if bad else None
+
+
+def unsafe(info: zipfile.ZipInfo) -> str | None:
     """Why a member may not be extracted, or None if it is safe."""
     name = info.filename
     if "\\" in name:
@@ -59,7 +77,7 @@ def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
         members = zf.infolist()
         bad = False
         for info in members:
-            reason = _unsafe(info)
+            reason = unsafe(info)
             if reason:
                 problems.add(shown, None, f'member "{info.filename}"', f"rejected: {reason}")
                 bad = True
@@ -92,7 +110,7 @@ def extract(archive: Path, shown: str, problems: Problems) -> Path | None:
             except OSError:
                 if not (target / SSD_NAME).is_file():
                     raise
-        except (OSError, zipfile.BadZipFile, zlib.error, EOFError, RuntimeError, NotImplementedError) as err:
+        except DAMAGED as err:
             problems.add(shown, None, "archive", f"cannot unpack (damaged archive?): {err}")
             return None
         finally:

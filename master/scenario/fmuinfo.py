@@ -126,6 +126,11 @@ def read(path: Path) -> FmuInfo:
 
 @functools.lru_cache(maxsize=64)
 def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
+    from .archive import damaged
+
+    why = damaged(path)
+    if why:
+        raise SourceError(f"{path.name}: {why}")
     try:
         md = fmpy.read_model_description(str(path))
     except Exception as err:  # fmpy raises plain Exceptions for invalid descriptions
