@@ -215,6 +215,27 @@ def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_pa
     assert shm_entries() <= shm
 
 
+def test_an_fmu_ending_the_simulation_ends_the_run_normally():
+    """crashtest mode 6 discards its step reaching t = 0.5 s with fmi2Terminated (FMI 2: the
+    step's results are not valid): every backend ends at that step's start, t = 0.49 s, without
+    an error, with the same rows up to there (as fmpy ends such an FMU)."""
+    sc = lags(3, params={"c1": {"mode": 6, "at_time": 0.5}})
+    runs = {be: api.run(sc, backend=be) for be in ("in-process", "serial", "parallel")}
+    ref = runs["in-process"].data
+    assert ref["time"][-1] == pytest.approx(0.49) and len(ref) == 50
+    for be, r in runs.items():
+        assert r.summary.stop_reason == "finished: c1 ended the simulation at t=0.49", be
+        assert r.summary.macro_steps == 49
+        assert all(np.array_equal(ref[k], r.data[k]) for k in ref.dtype.names), be
+    # inside a macro step (c1 steps twice per macro step and ends in its second step of the one
+    # from 0.49 s): the run ends at that macro step's start, its last complete one
+    half = lags(2, params={"c1": {"mode": 6, "at_time": 0.5}}, ratios=[1, 2])
+    for be in ("in-process", "parallel"):
+        r = api.run(half, backend=be)
+        assert r.data["time"][-1] == pytest.approx(0.49) and "t=0.495" in r.summary.stop_reason, be
+    assert_no_children()
+
+
 def test_a_worker_of_several_slow_components_is_not_a_hang():
     """The step timeout bounds one component's macro step, not a worker's: three components of
     0.25 s per step in one worker (0.75 s per macro step) under a 0.5 s timeout finish."""

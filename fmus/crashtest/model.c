@@ -4,7 +4,7 @@
  *
  * Once t >= at_time, its derivative evaluation misbehaves according to `mode`:
  *   0 normal, 1 segmentation fault, 2 hang (busy loop), 3 abort(), 4 return an error (fmi2Error),
- *   5 report a fatal error (fmi2Fatal).
+ *   5 report a fatal error (fmi2Fatal), 6 end the simulation (fmi2Discard with fmi2Terminated).
  * Every derivative evaluation burns `cost_us` microseconds of CPU, so that a scene of
  * crashtest components has a known, adjustable cost per step.
  * With `exclusive` set it behaves like a legacy FMU that holds a process-wide resource:
@@ -25,12 +25,12 @@ enum { R_AT_TIME = R_MODEL_START, R_COST_US, R_U, R_Y, R_DER_Y, N_REALS };
 enum { I_MODE = I_MODEL_START, N_INTEGERS };
 enum { B_EXCLUSIVE, N_BOOLEANS };
 
-enum { MODE_NORMAL, MODE_SEGFAULT, MODE_HANG, MODE_ABORT, MODE_ERROR, MODE_FATAL };
+enum { MODE_NORMAL, MODE_SEGFAULT, MODE_HANG, MODE_ABORT, MODE_ERROR, MODE_FATAL, MODE_TERMINATE };
 
 static const Variable VARIABLES[N_VARIABLES] = {
     COMMON_VARIABLES(SOLVER_EULER, 0.0),
-    {"mode", T_INTEGER, C_PARAMETER, V_FIXED, I_EXACT, I_MODE, MODE_NORMAL, NULL, 0, 5, NULL,
-     "0 normal, 1 segfault, 2 hang, 3 abort, 4 error, 5 fatal: what the derivative does once t >= at_time",
+    {"mode", T_INTEGER, C_PARAMETER, V_FIXED, I_EXACT, I_MODE, MODE_NORMAL, NULL, 0, 6, NULL,
+     "0 normal, 1 segfault, 2 hang, 3 abort, 4 error, 5 fatal, 6 terminate: what the derivative does once t >= at_time",
      NO_STATE, NULL},
     {"at_time", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_AT_TIME, 0.0, NULL, -INFINITY, INFINITY, "s",
      "time from which the derivative misbehaves", NO_STATE, NULL},
@@ -102,6 +102,9 @@ static ModelStatus derivatives(Instance *inst, double t, const double *x, double
         case MODE_FATAL:
             model_log(inst, "logError", "crashtest: fatal error requested at t = %g", t);
             return MODEL_FATAL;
+        case MODE_TERMINATE:
+            dx[0] = -x[0] + r[R_U];
+            return MODEL_TERMINATE;
         default:
             break;
         }

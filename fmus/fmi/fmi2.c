@@ -485,7 +485,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
     GUARD("fmi2GetBooleanStatus", ANY_STATE);
     if (s == fmi2Terminated && value) {
-        *value = fmi2False;
+        *value = inst->core->terminate ? fmi2True : fmi2False;
         return fmi2OK;
     }
     return no_status(inst, "fmi2GetBooleanStatus");

@@ -43,6 +43,7 @@ typedef struct {
     int have_input_derivatives; /* some fmi2SetRealInputDerivatives since the last doStep */
     int initialized;        /* Initialization Mode: MODEL.initialize ran and only inputs changed since */
     int fatal;              /* the model reported MODEL_FATAL: the step ends with fmi2Fatal */
+    int terminate;          /* the model reported MODEL_TERMINATE: the step ends with fmi2Discard */
 } Core;
 
 struct Instance {

@@ -22,8 +22,9 @@ typedef enum { C_PARAMETER, C_CALCULATED_PARAMETER, C_INPUT, C_OUTPUT, C_LOCAL, 
 typedef enum { V_CONSTANT, V_FIXED, V_TUNABLE, V_DISCRETE, V_CONTINUOUS } Variability;
 typedef enum { I_DEFAULT, I_EXACT, I_APPROX, I_CALCULATED } Initial; /* I_DEFAULT: attribute omitted */
 
-/* MODEL_ERROR: this evaluation failed (fmi2Error); MODEL_FATAL: the model cannot go on (fmi2Fatal). */
-typedef enum { MODEL_OK = 0, MODEL_ERROR = 1, MODEL_FATAL = 2 } ModelStatus;
+/* MODEL_ERROR: this evaluation failed (fmi2Error); MODEL_FATAL: the model cannot go on (fmi2Fatal);
+ * MODEL_TERMINATE: the model ends the simulation after this step (fmi2Discard, fmi2Terminated). */
+typedef enum { MODEL_OK = 0, MODEL_ERROR = 1, MODEL_FATAL = 2, MODEL_TERMINATE = 3 } ModelStatus;
 
 /* Solvers of the shared core (values of the `solver` parameter). */
 typedef enum {

@@ -30,6 +30,10 @@ int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
     if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
     ModelStatus st = inst->model->derivatives(inst, t, x, dx);
     if (st == MODEL_FATAL) inst->core->fatal = 1;
+    if (st == MODEL_TERMINATE) { /* the step completes; the simulation ends after it */
+        inst->core->terminate = 1;
+        return 0;
+    }
     return st != MODEL_OK;
 }
 
@@ -106,6 +110,10 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     if (refresh(inst, 0, "fmi2DoStep") || check_finite(inst, "fmi2DoStep")) {
         c->state = ST_ERROR;
         return fmi2Error;
+    }
+    if (c->terminate) {
+        layer_log(inst, LOG_INFO, "fmi2DoStep: the model ends the simulation at t = %.17g s", c->time);
+        return fmi2Discard; /* fmi2GetBooleanStatus(fmi2Terminated) says why */
     }
     return fmi2OK;
 }

@@ -26,6 +26,7 @@ class Backend(Protocol):
     def pacing(self) -> dict | None: ...
     def stats(self) -> tuple[dict[str, int], dict[str, float]]: ...
     def coupling_errors(self) -> dict[str, dict[str, float]]: ...
+    def stopped(self) -> tuple[str, float] | None: ...
     def close(self) -> None: ...
 
 
@@ -113,6 +114,10 @@ def execute(
             n = backend.run(n, plan.n_macro, recorder, BUDGET)
             if bar is not None:
                 bar.update(n)
+            stop = backend.stopped()
+            if stop is not None:  # an FMU ended the simulation: a normal end, earlier
+                summary.stop_reason = f"finished: {stop[0]} ended the simulation at t={stop[1]}"
+                break
         summary.stepping_time = time.perf_counter() - loop0
         pacing = backend.pacing()
         if pacing is not None:

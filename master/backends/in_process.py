@@ -66,6 +66,10 @@ class InProcessBackend:
         """Real-time statistics (see `pacing_stats`), None when unpaced."""
         return pacing_stats([self.compiled.pacing]) if self.compiled is not None else None
 
+    def stopped(self) -> tuple[str, float] | None:
+        """(component, time in s) if an FMU ended the simulation, else None."""
+        return self.compiled.stopped() if self.compiled is not None else None
+
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""
         return coupling_errors(self.plan, self.compiled.memory) if self.compiled is not None else {}

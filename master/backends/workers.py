@@ -42,6 +42,7 @@ from master.runtime.tables import (
     pacing_stats,
     ring_rows,
     shared_view,
+    stop_reason,
 )
 from master.schedule import Plan
 
@@ -222,6 +223,7 @@ class WorkerBackend:
         row_bytes = 8 * (1 + len(self.plan.record))
         self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
+        counter(self.memory, "stop_at").value = native.NEVER
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
         cpu = (lambda w: self.cpus[w % len(self.cpus)]) if self.cpus else (lambda w: None)
         processors = len(set(self.cpus)) if self.cpus else cpu_count()
@@ -331,7 +333,8 @@ class WorkerBackend:
             recorder.write(ring_rows(self.memory["rows"], self.drained, done))
             self.drained = done
             self.lib.mk_publish(counter(self.memory, "rows_drained"), done)
-        self.position = min(counter(self.memory, "published", i).value for i in range(len(self.names)))
+        done = min(counter(self.memory, "published", i).value for i in range(len(self.names)))
+        self.position = min(done, counter(self.memory, "stop_at").value)
 
     def cancel(self) -> None:
         """Make every worker stop at its next wait or macro step."""
@@ -371,6 +374,13 @@ class WorkerBackend:
                 if err > 0
             ]
         return stats
+
+    def stopped(self) -> tuple[str, float] | None:
+        """(component, time in s) if an FMU ended the simulation, else None."""
+        if self.memory is None or counter(self.memory, "stop_at").value >= native.NEVER:
+            return None
+        who, j = self.memory["stopper"][:2]
+        return stop_reason(self.plan, int(who), int(j))
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

@@ -29,6 +29,9 @@ typedef int fmi3_get_boolean(void *, const uint32_t *, size_t, bool *, size_t);
 typedef int fmi_get_state(void *, void **);
 typedef int fmi_set_state(void *, void *);
 typedef int fmi_free_state(void *, void **);
+typedef int fmi2_get_boolean_status(void *, int, int32_t *);
+#define FMI2_DISCARD 2
+#define FMI2_TERMINATED 3 /* fmi2StatusKind fmi2Terminated */
 
 #define STATUS_OK 1 /* fmi2Warning / fmi3Warning: anything above is a failure */
 
@@ -105,7 +108,7 @@ static int32_t wait_for(mk_kernel *k, mk_counter *c, int64_t target) {
     }
     const struct timespec tick = {0, 10000000};
     for (;;) {
-        if (load(sh->cancel)) return MK_ABORTED;
+        if (load(sh->cancel) || k->n_now >= load(sh->stop_at)) return MK_ABORTED;
         __atomic_add_fetch(&c->waiters, 1, __ATOMIC_SEQ_CST);
         int64_t v = load(c);
         if (v < target) futex(c, FUTEX_WAIT, (int32_t)v, &tick);
@@ -129,8 +132,8 @@ static int32_t barrier(mk_kernel *k) {
 
 void mk_publish(mk_counter *c, int64_t value) { publish(c, value); }
 
-void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
-    publish(s->cancel, 1);
+/* Wake every process sleeping on a counter, to see a cancel or a stop. */
+static void wake_all(mk_shared *s, int32_t n_components, int32_t n_workers) {
     for (int32_t i = 0; i < n_components; i++) {
         futex(&s->published[i], FUTEX_WAKE, INT_MAX, NULL);
         futex(&s->consumed[i], FUTEX_WAKE, INT_MAX, NULL);
@@ -138,6 +141,29 @@ void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
     for (int32_t w = 0; w < n_workers; w++) futex(&s->rows_written[w], FUTEX_WAKE, INT_MAX, NULL);
     futex(s->barrier, FUTEX_WAKE, INT_MAX, NULL);
     futex(s->rows_drained, FUTEX_WAKE, INT_MAX, NULL);
+}
+
+void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
+    publish(s->cancel, 1);
+    wake_all(s, n_components, n_workers);
+}
+
+/* The first macro step no process may begin (an FMU ended the simulation), INT64_MAX if none. */
+static int64_t stop_at(const mk_kernel *k) { return k->shared ? load(k->shared->stop_at) : k->stop_at; }
+
+/* Component ci ended the simulation at point j: no macro step from n_stop on. */
+static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
+    mk_shared *sh = k->shared;
+    int64_t *who = sh ? sh->stopper : k->stopper;
+    if (n_stop >= stop_at(k)) return; /* an earlier request stands */
+    who[0] = ci;
+    who[1] = j;
+    if (!sh) {
+        k->stop_at = n_stop;
+        return;
+    }
+    publish(sh->stop_at, n_stop);
+    wake_all(sh, k->n_components, sh->n_workers);
 }
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
@@ -154,15 +180,27 @@ static int get_real(const mk_component *c, double *v) {
     return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v);
 }
 
-/* doStep; *terminate is set when an FMI 3 FMU asks to end the simulation. final: no state from
- * before t will be restored (false during start-up, whose sweeps restore a saved state). */
-static int do_step(const mk_component *c, double t, bool final, bool *terminate) {
+/* doStep. *terminate: 1 when an FMI 3 FMU completed the step and asks to end the simulation,
+ * 2 when an FMI 2 FMU discarded it to end the simulation (fmi2Discard with fmi2Terminated: its
+ * outputs are not those of the step's end). final: no state from before t will be restored
+ * (false during start-up, whose sweeps restore a saved state). */
+static int do_step(const mk_component *c, double t, bool final, int *terminate) {
     if (c->fmi == 3) {
-        bool event = false, early = false;
+        bool event = false, early = false, end = false;
         double last = t;
-        return ((fmi3_do_step *)c->do_step)(c->instance, t, c->h, final, &event, terminate, &early, &last);
+        int st = ((fmi3_do_step *)c->do_step)(c->instance, t, c->h, final, &event, &end, &early, &last);
+        *terminate = end ? 1 : 0;
+        return st;
     }
-    return ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, final ? 1 : 0);
+    int st = ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, final ? 1 : 0);
+    int32_t ended = 0;
+    if (st == FMI2_DISCARD && c->get_boolean_status &&
+        ((fmi2_get_boolean_status *)c->get_boolean_status)(c->instance, FMI2_TERMINATED, &ended) <= STATUS_OK &&
+        ended) {
+        *terminate = 2;
+        return STATUS_OK;
+    }
+    return st;
 }
 
 static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
@@ -349,8 +387,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
         double t = point_time(c, j);
-        bool terminate = false;
-        int st;
+        int terminate = 0, st;
         int64_t t0 = now_ns();
         if (n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
         if (c->n_derivatives &&
@@ -360,7 +397,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
         if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
-        if (terminate) return fail(k, MK_TERMINATE, ci, MK_CALL_DO_STEP, st, j);
+        if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
+            request_stop(k, ci, j - 1, n);
+            return MK_STOPPED;
+        }
         if (c->feedthrough && (st = set_real(c, u + n_in)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
@@ -369,6 +409,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
+        if (terminate) { /* completed, and the end: at a macro step's end with it, else at its start */
+            request_stop(k, ci, j, m == kc - 1 ? n + 1 : n);
+            return m == kc - 1 ? MK_DONE : MK_STOPPED;
+        }
     }
     return MK_DONE;
 }
@@ -532,6 +576,13 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
     int32_t code = MK_DONE;
     int64_t n = n_from;
     for (; n < n_to; n++) {
+        k->n_now = n;
+        if (n >= stop_at(k)) {
+            code = MK_STOPPED;
+            break;
+        }
+        /* rows at the recording interval only (also when an FMU ends the run): every process
+         * records the same macro steps, so the rows of the ring line up */
         bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
         if (due && !k->shared && (code = ring_room(k))) break;
         if (k->shared && load(k->shared->cancel)) {

@@ -26,8 +26,8 @@ enum {
     MK_FMI_ERROR = 3,  /* an FMI call returned fmi2Error / fmi2Fatal (or worse) */
     MK_NOT_FINITE = 4, /* an output read is NaN or Inf */
     MK_DIVERGED = 5,   /* an output grew beyond its bound */
-    MK_TERMINATE = 6,  /* an FMI 3 FMU asked to terminate */
-    MK_ABORTED = 7,    /* another process failed or the supervisor cancelled the run */
+    MK_ABORTED = 6,    /* another process failed or the supervisor cancelled the run */
+    MK_STOPPED = 7,    /* an FMU ended the simulation (FMI 2 fmi2Terminated, FMI 3 terminateSimulation) */
 };
 
 /* Which FMI call failed (mk_error.call). */
@@ -94,7 +94,7 @@ typedef struct {
     int32_t fmi;
     void *instance;
     mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean;
-    mk_function get_state, set_state, free_state;
+    mk_function get_state, set_state, free_state, get_boolean_status;
     /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
     int64_t num0, dnum, den;
     double h;
@@ -171,6 +171,8 @@ typedef struct {
     mk_counter *rows_written; /* [n_workers]: rows whose columns each worker has written */
     mk_counter *rows_drained; /* rows the supervisor has taken out of the ring */
     mk_counter *cancel;       /* non-zero: stop at the next wait or macro step */
+    mk_counter *stop_at;      /* an FMU ended the simulation: no macro step from this one on */
+    int64_t *stopper;         /* [2]: the component that asked and the communication point */
     int64_t *busy;            /* [2]: CLOCK_MONOTONIC ns at which this worker's FMU step began (0:
                                  none running), and that component */
     int32_t worker;
@@ -196,6 +198,9 @@ typedef struct {
     int64_t rows_drained; /* one process: rows Python has taken out (several: see shared) */
     mk_shared *shared;    /* NULL: one process steps everything, Python drains the ring itself */
     int64_t barriers;     /* start-up barriers this process has passed */
+    int64_t n_now;        /* the macro step being stepped */
+    int64_t stop_at;      /* one process: as mk_shared.stop_at */
+    int64_t stopper[2];   /* one process: as mk_shared.stopper */
     mk_pacing *pacing;
     mk_error error;
 } mk_kernel;

@@ -25,7 +25,8 @@ CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, TERMINATE, ABORTED = range(8)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED = range(8)
+NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
     "set_input_derivatives",
@@ -56,6 +57,8 @@ class Shared(C.Structure):
         ("rows_written", C.POINTER(Counter)),
         ("rows_drained", C.POINTER(Counter)),
         ("cancel", C.POINTER(Counter)),
+        ("stop_at", C.POINTER(Counter)),
+        ("stopper", C.POINTER(_i64)),
         ("busy", C.POINTER(_i64)),
         ("worker", _i32),
         ("n_workers", _i32),
@@ -108,6 +111,7 @@ class Component(C.Structure):
         ("get_state", _p),
         ("set_state", _p),
         ("free_state", _p),
+        ("get_boolean_status", _p),
         ("num0", _i64),
         ("dnum", _i64),
         ("den", _i64),
@@ -192,6 +196,9 @@ class Kernel(C.Structure):
         ("rows_drained", _i64),
         ("shared", C.POINTER(Shared)),
         ("barriers", _i64),
+        ("n_now", _i64),
+        ("stop_at", _i64),
+        ("stopper", _i64 * 2),
         ("pacing", C.POINTER(Pacing)),
         ("error", Error),
     ]

@@ -44,6 +44,7 @@ FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used wit
     "get_state": ("fmi2GetFMUstate", "fmi3GetFMUState"),
     "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
     "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
+    "get_boolean_status": ("fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
 }
 
 
@@ -127,6 +128,8 @@ def layout(
     out["rows_written"] = ((nw, counter), "uint8")
     out["rows_drained"] = ((1, counter), "uint8")
     out["cancel"] = ((1, counter), "uint8")
+    out["stop_at"] = ((1, counter), "uint8")  # set to native.NEVER by whoever creates the memory
+    out["stopper"] = ((8,), "int64")  # the component that ended the simulation, its point
     out["busy"] = ((nw, 8), "int64")  # one cache line per worker
     out["span"] = ((nw, 8), "int64")  # CLOCK_MONOTONIC ns at which each worker's last run began, ended
     out["pacing"] = ((nw, pacing), "uint8")
@@ -193,6 +196,7 @@ class CompiledPlan:
         k.row_capacity = len(self.rows)
         self.pacing = native.Pacing.from_buffer(memory["pacing"][worker])
         k.pacing = C.pointer(self.pacing)
+        k.stop_at = native.NEVER
         if n_workers:
             k.shared = C.pointer(shared_view(memory, worker, n_workers, spin))
         self._keep += [records]
@@ -386,9 +390,24 @@ class CompiledPlan:
             self.publish_stats()
         if code == native.ABORTED:
             raise Cancelled(f"cancelled before macro step {n_next.value}")
+        if code == native.STOPPED:
+            return code, n_next.value
         if code > native.YIELD:
             raise self.error()
         return code, n_next.value
+
+    def stopped(self) -> tuple[str, float] | None:
+        """(component, time in s) if an FMU ended the simulation, else None."""
+        k = self.kernel
+        if k.shared:
+            if counter(self.memory, "stop_at").value >= native.NEVER:
+                return None
+            who, j = self.memory["stopper"][:2]
+        elif k.stop_at >= native.NEVER:
+            return None
+        else:
+            who, j = k.stopper
+        return stop_reason(self.plan, int(who), int(j))
 
     def take_rows(self) -> np.ndarray:
         """The rows waiting in the results ring (the only process); empties it."""
@@ -427,8 +446,6 @@ class CompiledPlan:
                 what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
         step = f"in the step from t={t} to t={t1}"
-        if e.code == native.TERMINATE:
-            return SimulationError(f"{fmu.describe(f'asked to terminate at t={t1}')} {step}", name, t)
         call = native.CALLS[e.call]
         cause = fmu.call_error(call, e.status)
         if call in ("get_integer", "get_boolean"):
@@ -458,8 +475,9 @@ def counter(memory: Memory, name: str, i: int = 0) -> native.Counter:
 def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_S) -> native.Shared:
     """kernel.h's mk_shared for `worker` over the counters in `memory` (spin: s before a waiter sleeps)."""
     sh = native.Shared()
-    for name in ("published", "consumed", "barrier", "rows_written", "rows_drained", "cancel"):
+    for name in ("published", "consumed", "barrier", "rows_written", "rows_drained", "cancel", "stop_at"):
         setattr(sh, name, C.cast(memory[name].ctypes.data, C.POINTER(native.Counter)))
+    sh.stopper = C.cast(memory["stopper"].ctypes.data, C.POINTER(C.c_int64))
     sh.busy = C.cast(memory["busy"][worker].ctypes.data, C.POINTER(C.c_int64))
     sh.worker, sh.n_workers, sh.spin_ns = worker, n_workers, int(spin * 1e9)
     return sh
@@ -548,3 +566,10 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }
     return out
+
+
+def stop_reason(plan: Plan, component: int, point: int) -> tuple[str, float]:
+    """(component name, time in s) of an FMU that ended the simulation after communication point
+    `point` (the end of its step from there)."""
+    pc = plan.components[component]
+    return pc.name, pc.clock.time(point + 1)
