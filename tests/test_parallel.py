@@ -233,6 +233,12 @@ def test_an_fmu_ending_the_simulation_ends_the_run_normally():
     for be in ("in-process", "parallel"):
         r = api.run(half, backend=be)
         assert r.data["time"][-1] == pytest.approx(0.49) and "t=0.495" in r.summary.stop_reason, be
+    # a worker still far behind when the stop comes (independent components, a slow one; longer
+    # than the driver's 0.1 s budget): its rows up to the stop are kept all the same
+    apart = dataclasses.replace(lags(2, params={"c0": {"mode": 6, "at_time": 0.5}, "c1": {"cost_us": 3000}}),
+                                connections=())  # fmt: skip
+    r = api.run(apart, backend="parallel")
+    assert len(r.data) == 50 and r.summary.macro_steps == 49 and "c0 ended" in r.summary.stop_reason
     assert_no_children()
 
 

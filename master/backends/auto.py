@@ -32,9 +32,10 @@ def levels(plan: Plan) -> dict[str, int]:
     return out
 
 
-def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[float, float]:
-    """(s to start the workers and initialise, s per macro step) of a worker backend with `groups`,
-    timed on the macro steps after start-up."""
+def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[float, float, bool]:
+    """(s to start the workers and initialise, s per macro step, whether an FMU ended the
+    simulation meanwhile) of a worker backend with `groups`, timed on the macro steps after
+    start-up."""
     be = WorkerBackend(plan, groups, step_timeout)
     rec = Recorder(["time"] + [f"{c}.{v}" for c, v in plan.record])
     try:
@@ -54,7 +55,7 @@ def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[flo
             be.cancel()
             be.pool.wait(be._supervise)
             n = be.position
-        return setup, be.stepping_span() / max(n - n0, 1)
+        return setup, be.stepping_span() / max(n - n0, 1), be.stopped() is not None
     finally:
         be.close()
         rec.discard()
@@ -71,10 +72,14 @@ def choose_backend(plan: Plan, step_timeout: float = DEFAULT_STEP_TIMEOUT) -> tu
     if plan.n_macro <= plan.startup_steps:
         return "serial", "no macro step to time"
     try:
-        setup_s, serial = trial(plan, separate([[pc.name for pc in plan.components]], plan), step_timeout)
-        setup_p, parallel = trial(plan, groups, step_timeout)
+        setup_s, serial, ended = trial(
+            plan, separate([[pc.name for pc in plan.components]], plan), step_timeout
+        )
+        setup_p, parallel, ended_p = trial(plan, groups, step_timeout)
     except (SimulationError, FmuError, WorkerFailure) as e:  # the run itself will say what fails, and where
         return "serial", f"a trial failed ({e})"
+    if ended or ended_p:
+        return "serial", "an FMU ended the simulation within the timed macro steps"
     facts = (
         f"serial {serial * 1e6:.1f} us/step, parallel {parallel * 1e6:.1f} us/step measured "
         f"({len(groups)} workers on {cpus} CPUs; parallel needs {MARGIN:g}x)"

@@ -41,8 +41,8 @@ from master.runtime.tables import (
     layout,
     pacing_stats,
     ring_rows,
+    shared_stop,
     shared_view,
-    stop_reason,
 )
 from master.schedule import Plan
 
@@ -224,6 +224,7 @@ class WorkerBackend:
         self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER
+        self.memory["stopper"][:, 0] = native.NEVER
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
         cpu = (lambda w: self.cpus[w % len(self.cpus)]) if self.cpus else (lambda w: None)
         processors = len(set(self.cpus)) if self.cpus else cpu_count()
@@ -377,10 +378,9 @@ class WorkerBackend:
 
     def stopped(self) -> tuple[str, float] | None:
         """(component, time in s) if an FMU ended the simulation, else None."""
-        if self.memory is None or counter(self.memory, "stop_at").value >= native.NEVER:
+        if self.memory is None or self.running:  # known once every worker has come back
             return None
-        who, j = self.memory["stopper"][:2]
-        return stop_reason(self.plan, int(who), int(j))
+        return shared_stop(self.plan, self.memory)
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

@@ -154,15 +154,22 @@ static int64_t stop_at(const mk_kernel *k) { return k->shared ? load(k->shared->
 /* Component ci ended the simulation at point j: no macro step from n_stop on. */
 static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
     mk_shared *sh = k->shared;
-    int64_t *who = sh ? sh->stopper : k->stopper;
-    if (n_stop >= stop_at(k)) return; /* an earlier request stands */
-    who[0] = ci;
-    who[1] = j;
     if (!sh) {
-        k->stop_at = n_stop;
+        if (n_stop < k->stop_at) {
+            k->stop_at = n_stop;
+            k->stopper[0] = ci;
+            k->stopper[1] = j;
+        }
         return;
     }
-    publish(sh->stop_at, n_stop);
+    /* per component, written by its own process only: the earliest request is found afterwards */
+    sh->stopper[2 * ci] = n_stop;
+    sh->stopper[2 * ci + 1] = j;
+    int64_t cur = load(sh->stop_at); /* lower stop_at, never raise it: requests may race */
+    while (n_stop < cur &&
+           !__atomic_compare_exchange_n(&sh->stop_at->value, &cur, n_stop, false, __ATOMIC_SEQ_CST,
+                                        __ATOMIC_SEQ_CST)) {
+    }
     wake_all(sh, k->n_components, sh->n_workers);
 }
 
@@ -409,9 +416,11 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
-        if (terminate) { /* completed, and the end: at a macro step's end with it, else at its start */
-            request_stop(k, ci, j, m == kc - 1 ? n + 1 : n);
-            return m == kc - 1 ? MK_DONE : MK_STOPPED;
+        if (terminate) { /* completed, and the end: at a macro step's end with it, else at its start
+                          * (also in start-up, whose sweeps would step the FMU again) */
+            bool with_it = m == kc - 1 && n >= k->startup_steps;
+            request_stop(k, ci, j, with_it ? n + 1 : n);
+            return with_it ? MK_DONE : MK_STOPPED;
         }
     }
     return MK_DONE;

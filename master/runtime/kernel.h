@@ -172,7 +172,8 @@ typedef struct {
     mk_counter *rows_drained; /* rows the supervisor has taken out of the ring */
     mk_counter *cancel;       /* non-zero: stop at the next wait or macro step */
     mk_counter *stop_at;      /* an FMU ended the simulation: no macro step from this one on */
-    int64_t *stopper;         /* [2]: the component that asked and the communication point */
+    int64_t *stopper;         /* [n_components][2]: a component's stop request (first macro step
+                                 not to begin) and its communication point */
     int64_t *busy;            /* [2]: CLOCK_MONOTONIC ns at which this worker's FMU step began (0:
                                  none running), and that component */
     int32_t worker;

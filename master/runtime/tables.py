@@ -129,7 +129,7 @@ def layout(
     out["rows_drained"] = ((1, counter), "uint8")
     out["cancel"] = ((1, counter), "uint8")
     out["stop_at"] = ((1, counter), "uint8")  # set to native.NEVER by whoever creates the memory
-    out["stopper"] = ((8,), "int64")  # the component that ended the simulation, its point
+    out["stopper"] = ((nc, 2), "int64")  # per component: its stop request and point (kernel.h)
     out["busy"] = ((nw, 8), "int64")  # one cache line per worker
     out["span"] = ((nw, 8), "int64")  # CLOCK_MONOTONIC ns at which each worker's last run began, ended
     out["pacing"] = ((nw, pacing), "uint8")
@@ -400,14 +400,10 @@ class CompiledPlan:
         """(component, time in s) if an FMU ended the simulation, else None."""
         k = self.kernel
         if k.shared:
-            if counter(self.memory, "stop_at").value >= native.NEVER:
-                return None
-            who, j = self.memory["stopper"][:2]
-        elif k.stop_at >= native.NEVER:
+            return shared_stop(self.plan, self.memory)
+        if k.stop_at >= native.NEVER:
             return None
-        else:
-            who, j = k.stopper
-        return stop_reason(self.plan, int(who), int(j))
+        return stop_reason(self.plan, int(k.stopper[0]), int(k.stopper[1]))
 
     def take_rows(self) -> np.ndarray:
         """The rows waiting in the results ring (the only process); empties it."""
@@ -551,8 +547,9 @@ def estimate_rows(plan: Plan, lk: Link) -> slice:
 def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
     """Per extrapolated connection "source.output -> consumer.input": the largest ("max") and the
     RMS ("rms") difference between the sample its polynomial predicted for each macro step's end
-    and the sample the source then produced, relative to the range the signal took (1 where it
-    stayed constant). The last macro step is not estimated."""
+    and the sample the source then produced, relative to the range of the macro-step samples
+    from the first full-order macro step on (1 where they stayed constant). The last macro step
+    is not estimated."""
     est = memory["estimates"]
     out = {}
     for lk in plan.links:
@@ -566,6 +563,15 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }
     return out
+
+
+def shared_stop(plan: Plan, memory: Memory) -> tuple[str, float] | None:
+    """The earliest stop request of the workers' components (component, time in s), or None."""
+    if counter(memory, "stop_at").value >= native.NEVER:
+        return None
+    requests = memory["stopper"]
+    who = int(np.argmin(requests[:, 0]))
+    return stop_reason(plan, who, int(requests[who, 1]))
 
 
 def stop_reason(plan: Plan, component: int, point: int) -> tuple[str, float]:
