@@ -430,3 +430,18 @@ def test_backend_close_without_open_and_twice():
     be.close()
     be.close()
     assert_no_children()
+
+
+def test_pinned_and_paced_workers_give_the_same_results():
+    """--cpus pins the workers (all on the first allowed processor here), --real-time paces them
+    on one clock: the same bits as a free run, every frame of the paced one counted."""
+    sc = lags(2, stop=Fraction(1, 10))
+    free = api.run(sc, backend="parallel").data
+    cpu = min(os.sched_getaffinity(0))
+    pinned = api.run(sc, backend="parallel", cpus=[cpu])
+    paced = api.run(sc, backend="parallel", real_time=1.0)
+    for r in (pinned, paced):
+        assert all(np.array_equal(free[k], r.data[k]) for k in free.dtype.names)
+    assert paced.summary.wall_time > 0.09 and paced.summary.lateness is not None
+    assert paced.summary.overruns is not None
+    assert_no_children()
