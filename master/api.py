@@ -14,9 +14,9 @@ from fractions import Fraction
 from pathlib import Path
 
 from master.backends.component import SimulationError
-from master.backends.driver import execute, stop_signals
+from master.backends.driver import execute, interruption, stop_signals
 from master.fmu import FmuError, read_description, variables_of
-from master.recorder import Recorder, ResultsError, RunResult
+from master.recorder import Recorder, ResultsError, RunResult, RunSummary
 from master.scenario.model import Scenario, Value
 from master.schedule import Capability, Plan, PlanError, build_plan
 
@@ -213,7 +213,11 @@ def run(
             recorder.discard()
             raise
         try:
-            be.open()
+            try:
+                be.open()
+            except KeyboardInterrupt as e:  # a signal while the FMUs load: the same clean stop
+                t0 = float(sc.start_time)
+                raise interruption(e, t0, RunSummary(sc.name, be.name, "", 0.0, 0.0, 0)) from None
             summary = execute(p, be, recorder, real_time=real_time, progress=progress)
         except SimulationError as e:
             summary = e.summary  # type: ignore[attr-defined]

@@ -327,10 +327,11 @@ def long_run(
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
     ps = psutil.Process(proc.pid)
     workers = 1 if backend == "serial" else 2
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 30
     while len(ps.children()) < workers and time.monotonic() < deadline:
         time.sleep(0.1)
-    time.sleep(0.5)  # let it compute some macro steps
+    while not (out.exists() and out.stat().st_size > 2000) and time.monotonic() < deadline:
+        time.sleep(0.05)  # until it has computed (and drained) some macro steps
     return proc, ps.children(recursive=True), out
 
 

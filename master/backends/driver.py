@@ -80,6 +80,17 @@ class Progress:
         sys.stderr.flush()
 
 
+def interruption(e: KeyboardInterrupt, t: float, summary: RunSummary) -> SimulationError:
+    """The SimulationError of a run stopped by a signal at simulation time t (s): it names the
+    signal, carries its number (`.signal`) and the summary, whose stop reason says so."""
+    signum = getattr(e, "signum", signal.SIGINT)
+    err = SimulationError(f"interrupted ({signal.Signals(signum).name}) at t={t}", "", t)
+    err.signal = signum  # type: ignore[attr-defined]
+    summary.stop_reason = f"failed: {err}"
+    err.summary = summary  # type: ignore[attr-defined]
+    return err
+
+
 def execute(
     plan: Plan,
     backend: Backend,
@@ -138,13 +149,7 @@ def execute(
         err.summary = summary  # type: ignore[attr-defined]
         raise err from None
     except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP: keep the rows so far, like any other stop
-        t = plan.macro_clock.time(backend.position)
-        signum = getattr(e, "signum", signal.SIGINT)
-        err = SimulationError(f"interrupted ({signal.Signals(signum).name}) at t={t}", "", t)
-        err.signal = signum  # type: ignore[attr-defined]
-        summary.stop_reason = f"failed: {err}"
-        err.summary = summary  # type: ignore[attr-defined]
-        raise err from None
+        raise interruption(e, plan.macro_clock.time(backend.position), summary) from None
     finally:
         summary.wall_time = time.perf_counter() - wall0
         summary.macro_steps = backend.position
