@@ -313,7 +313,6 @@ class Fmu:
         if not self.fmi3:
             self.raw_get_real = fn("fmi2GetReal")
             self.raw_set_real = fn("fmi2SetReal")
-            self.raw_set_input_derivatives = fn("fmi2SetRealInputDerivatives")
             self.raw_do_step = fn("fmi2DoStep")
             return
         get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")

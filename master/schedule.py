@@ -16,6 +16,7 @@ from master.fmu import VariableInfo
 from master.scenario.model import Scenario, Stimulus
 
 MAX_ORDER = 3
+EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
 
 class PlanError(Exception):
@@ -46,6 +47,11 @@ class Clock:
         h = macro_step / ratio
         den = math.lcm(start.denominator, h.denominator)
         return Clock(start.numerator * (den // start.denominator), h.numerator * (den // h.denominator), den)
+
+    def exact_up_to(self, points: int) -> bool:
+        """Whether points 0 .. `points` convert to floats exactly as the kernel computes them
+        ((num0 + j dnum) / den in double precision: every integer below 2^53)."""
+        return self.den < EXACT and abs(self.num0) + points * abs(self.dnum) < EXACT
 
     def time(self, j: int) -> float:
         """Communication point j as the float nearest to the exact rational (s)."""

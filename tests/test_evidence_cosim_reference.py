@@ -1,13 +1,11 @@
 """Reference of a scene without Model Exchange: a converged co-simulation, with its convergence."""
 
-import subprocess
-import sys
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
-from test_run import LAG  # a Co-Simulation-only FMU source for pythonfmu
+from test_run import LAG, build_pythonfmu  # a Co-Simulation-only FMU source for pythonfmu
 
 from master.evidence.reference import converged_cosimulation, has_model_exchange, reference
 from master.scenario.model import Component, Scenario
@@ -15,11 +13,7 @@ from master.scenario.model import Component, Scenario
 
 @pytest.fixture(scope="module")
 def lag_fmu(tmp_path_factory) -> Path:
-    d = tmp_path_factory.mktemp("lag")
-    (d / "Lag.py").write_text(LAG)
-    cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(d / "Lag.py"), "-d", str(d)]
-    subprocess.run(cmd, check=True, capture_output=True)
-    return d / "Lag.fmu"
+    return build_pythonfmu("Lag", LAG, tmp_path_factory.mktemp("lag"))
 
 
 def decay(fmu: Path) -> Scenario:

@@ -7,12 +7,12 @@ tests/test_parallel.py; here the kernel's own pieces are checked against their d
 import dataclasses
 import shutil
 import subprocess
-import sys
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
+from test_run import build_pythonfmu
 
 import master.api as api
 from master.runtime import native
@@ -40,11 +40,7 @@ class Echo(Fmi2Slave):
 
 @pytest.fixture(scope="module")
 def echo(tmp_path_factory) -> Path:
-    d = tmp_path_factory.mktemp("echo")
-    (d / "Echo.py").write_text(ECHO)
-    cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(d / "Echo.py"), "-d", str(d)]
-    subprocess.run(cmd, check=True, capture_output=True)
-    return d / "Echo.fmu"
+    return build_pythonfmu("Echo", ECHO, tmp_path_factory.mktemp("echo"))
 
 
 def test_kernel_compiles_warnings_clean(tmp_path):

@@ -43,20 +43,19 @@ class Lag(Fmi2Slave):
 REFUSE = LAG.replace("class Lag", "class Refuse").replace('self.y = float("nan")', "return False")
 
 
+def build_pythonfmu(name: str, source: str, folder: Path) -> Path:
+    """folder/<name>.fmu built by pythonfmu from the Python `source` of class `name`."""
+    script = folder / f"{name}.py"
+    script.write_text(source)
+    cmd = [sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(folder)]
+    subprocess.run(cmd, check=True, capture_output=True)
+    return folder / f"{name}.fmu"
+
+
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("pyfmu")
-    out = {}
-    for name, src in (("Lag", LAG), ("Refuse", REFUSE)):
-        script = d / f"{name}.py"
-        script.write_text(src)
-        subprocess.run(
-            [sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(d)],
-            check=True,
-            capture_output=True,
-        )
-        out[name] = d / f"{name}.fmu"
-    return out
+    return {name: build_pythonfmu(name, src, d) for name, src in (("Lag", LAG), ("Refuse", REFUSE))}
 
 
 def scene(components, connections=(), **kw) -> Scenario:

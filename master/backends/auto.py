@@ -22,16 +22,6 @@ TRIAL_BUDGET = 0.05  # s of stepping per backend at most
 MARGIN = 1.2  # parallel must step this much faster to be chosen
 
 
-def levels(plan: Plan) -> dict[str, int]:
-    """Dependency level of each component: 0, or one more than any source it must go after."""
-    out: dict[str, int] = {}
-    for pc in plan.components:  # stepping order: sources that go first come first
-        out[pc.name] = max(
-            (out[lk.source] + 1 for lk in plan.links_into(pc.name) if lk.source_first), default=0
-        )
-    return out
-
-
 def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[float, float, bool]:
     """(s to start the workers and initialise, s per macro step, whether an FMU ended the
     simulation meanwhile) of a worker backend with `groups`, timed on the macro steps after

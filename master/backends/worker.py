@@ -31,7 +31,6 @@ import numpy as np
 from master.runtime.tables import Memory
 
 STOP = -1  # op: leave the loop
-NOP = 0  # op: do nothing (measures the synchronisation cost)
 MSG_BYTES = 2048  # room for one error message per worker
 SPIN_S = 100e-6  # s: how long a waiting process polls before it sleeps (see WorkerPool)
 POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
@@ -123,8 +122,7 @@ def _worker_main(
             if op == STOP:
                 break
             state[0] = RUNNING
-            if op != NOP:
-                task.command(op, a, b, where)
+            task.command(op, a, b, where)
             state[0] = IDLE
             done.release()
     except BaseException as e:  # report, then end: the master decides what happens next

@@ -25,9 +25,8 @@ from master.backends.component import (
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.schedule import Link, Plan, PlanComponent
+from master.schedule import Clock, Link, Plan, PlanComponent
 
-EXACT = 2**53  # clock integers beyond this would not convert to float exactly
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
 SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking one costs ~50-100 us)
@@ -181,7 +180,7 @@ class CompiledPlan:
         k.startup_sweeps = plan.startup_sweeps
         k.record_every = plan.record_every
         mc = plan.macro_clock
-        self._check_clock("the macro clock", mc.num0, mc.dnum, mc.den, plan.n_macro)
+        self._check_clock("the macro clock", mc, plan.n_macro)
         k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
         local = [(i, c, v) for i, (c, v) in enumerate(plan.record) if c in fmus]
         self.record_index = [i for i, _, _ in local]  # plan.record index of each local column
@@ -212,12 +211,13 @@ class CompiledPlan:
         self._keep.append(a)
         return a
 
-    def _check_clock(self, what: str, num0: int, dnum: int, den: int, n_macro: int, ratio: int = 1) -> None:
-        last = abs(num0) + n_macro * ratio * abs(dnum)
-        if last >= EXACT or den >= EXACT:
+    def _check_clock(self, what: str, clock: Clock, points: int) -> None:
+        """Scenario files are checked at validate (master.scenario.settings); a Scenario built in
+        Python is checked here, before the kernel computes times it cannot."""
+        if not clock.exact_up_to(points):
             raise SimulationError(
-                f"{self.plan.scenario.path}: {what} needs integers beyond 2^53 "
-                f"(times {num0}/{den} + j {dnum}/{den}); choose times with smaller denominators",
+                f"{self.plan.scenario.path}: {what} needs integers beyond 2^53; "
+                "choose times with fewer decimals",
                 "",
                 float(self.plan.scenario.start_time),
             )
@@ -227,9 +227,7 @@ class CompiledPlan:
         consumers here read: its clock and its history."""
         plan = self.plan
         c = native.Component()
-        self._check_clock(
-            f"component {pc.name}", pc.clock.num0, pc.clock.dnum, pc.clock.den, plan.n_macro, pc.ratio
-        )
+        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
         c.ratio = pc.ratio
@@ -255,9 +253,7 @@ class CompiledPlan:
         for slot in ("do_step", "set_real", "get_real"):
             if getattr(c, slot) is None:
                 raise FmuError(f"{pc.name}: {fmu.path.name} does not export {FMI_FUNCTIONS[slot][c.fmi - 2]}")
-        self._check_clock(
-            f"component {pc.name}", pc.clock.num0, pc.clock.dnum, pc.clock.den, plan.n_macro, pc.ratio
-        )
+        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
         c.ratio = k = pc.ratio

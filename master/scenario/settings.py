@@ -14,6 +14,8 @@ from fractions import Fraction
 
 from lxml import etree
 
+from master.schedule import Clock
+
 from .context import Context
 from .fmuinfo import FLOATS, NUMERIC
 from .model import Stimulus
@@ -43,7 +45,6 @@ class Settings:
 INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
 MAX_STEP_RATIO = 100_000  # communication steps of one component per macro step
 MAX_MACRO_STEPS = 10**10  # macro steps of one run
-EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
 
 def _time(ctx: Context, elem: etree._Element, attr: str) -> Fraction | None:
@@ -155,14 +156,11 @@ def _limits(ctx: Context, elem: etree._Element, s: Settings, times: tuple[Fracti
         )
         return
     for name, k in {"the macro clock": 1, **s.step_ratio}.items():
-        h = s.macro_step / k
-        den = math.lcm(start.denominator, h.denominator)
-        last = abs(start) * den + math.ceil(n_macro) * k * h * den
-        if den >= EXACT or last >= EXACT:
+        if not Clock.make(start, s.macro_step, k).exact_up_to(math.ceil(n_macro) * k):
             ctx.at(
                 elem,
-                f"{name}: times {_s(start)} + j {_s(h)} need integers beyond 2^53 over {int(n_macro)} "
-                "macro steps; choose times with fewer decimals",
+                f"{name}: times {_s(start)} + j {_s(s.macro_step / k)} need integers beyond 2^53 over "
+                f"{int(n_macro)} macro steps; choose times with fewer decimals",
             )
 
 
