@@ -55,7 +55,7 @@ class WorkerFailure(RuntimeError):
     """A worker failed: `component` (name or None), `cause`; `time` (s) if the failing code said.
 
     raised: the task raised an exception whose message is `cause` (else: crash or hang);
-    variable: the variable it named, if any.
+    variable: the variable it named, if any; worker: the index of the failed worker, if known.
     """
 
     def __init__(
@@ -65,8 +65,10 @@ class WorkerFailure(RuntimeError):
         time: float | None = None,
         raised: bool = False,
         variable: str | None = None,
+        worker: int | None = None,
     ):
         self.component = component
+        self.worker = worker
         self.cause = cause
         self.time = time
         self.raised = raised
@@ -318,7 +320,7 @@ class WorkerPool:
         return names[k] if 0 <= k < len(names) else (names[0] if len(names) == 1 else None)
 
     def _failure(self, i: int, cause: str, t: float | None = None, raised: bool = False) -> WorkerFailure:
-        return WorkerFailure(self._component(i), cause, t, raised)
+        return WorkerFailure(self._component(i), cause, t, raised, worker=i)
 
     def close(self) -> None:
         """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory."""

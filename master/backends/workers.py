@@ -351,6 +351,9 @@ class WorkerBackend:
     def _error(self, e: WorkerFailure, t: float, when: str) -> SimulationError:
         """A SimulationError from a worker failure; the worker's own message if it raised one."""
         comp = e.component or "?"
+        busy = self.memory["busy"] if self.memory is not None else None
+        if not e.raised and e.worker is not None and busy is not None and busy[e.worker, 0]:
+            comp = self.names[int(busy[e.worker, 1])]  # the component in an FMU call when it died
         if e.raised:  # the kernel or the FMU layer said what happened (and when)
             return SimulationError(e.cause, comp, t if e.time is None else e.time, e.variable)
         return SimulationError(f"component {comp}: {e.cause} {when}", comp, t)
