@@ -16,6 +16,7 @@ from master.fmu import FmuError
 from master.scenario import ScenarioError
 from master.schedule import PlanError
 
+SHOWN_FAILURES = 10  # failed cases a sweep lists by name; the table has them all
 USER_ERRORS: tuple[type[BaseException], ...] = (
     api.UsageError,
     FmuError,
@@ -103,12 +104,57 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("-o", "--output", metavar="PNG", help="image file (default: CSV name with .png)")
     pl.add_argument("--record", action="append", metavar="COMP.VAR", help="plot only these columns")
 
+    _sweep_parser(sub)
+
     b = sub.add_parser("build-fmus", help="build the project's FMUs", add_help=False)
     b.add_argument("args", nargs=argparse.REMAINDER)
 
     be = sub.add_parser("bench", help="work-precision bench of a scenario", add_help=False)
     be.add_argument("args", nargs=argparse.REMAINDER)
     return p
+
+
+def _sweep_parser(sub) -> None:
+    s = sub.add_parser(
+        "sweep",
+        help="run a scenario over many parameter values (Dask)",
+        description="Run a scenario once per case on a Dask cluster (local, or --scheduler) and write "
+        "DIR/cases.parquet: per case the varied values, status, message, wall time, final/min/max of "
+        "every recorded column and the metrics. A rerun skips the cases already in DIR.",
+    )
+    s.add_argument("scenario", help="scenario file (.ssd or .ssp)")
+    s.add_argument(
+        "--vary",
+        action="append",
+        required=True,
+        metavar="COMP.VAR=START:STOP:N",
+        help="a parameter (or the height of a one-point step stimulus) from START to STOP: N values "
+        "for a grid, START:STOP for lhs/sobol (repeatable)",
+    )
+    s.add_argument(
+        "--method", choices=("grid", "lhs", "sobol"), default="grid", help="grid (default), lhs, sobol"
+    )
+    s.add_argument("--samples", type=int, metavar="N", help="points drawn by lhs or sobol")
+    s.add_argument("--seed", type=int, metavar="S", help="seed of lhs/sobol (the same seed, the same points)")
+    s.add_argument(
+        "--metric",
+        action="append",
+        metavar="NAME=EXPR",
+        help="a number per case from the recorded columns, e.g. peak=max(abs(mass1.x)) (repeatable; "
+        "functions: max min mean rms std final first integral at time_of_max abs sqrt exp log sin cos)",
+    )
+    s.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask cluster, e.g. tcp://host:8786")
+    s.add_argument("--workers", type=int, metavar="N", help="local cluster size (default: the usable CPUs)")
+    s.add_argument("--out", metavar="DIR", help="results folder (default: results/sweep-SCENE)")
+    s.add_argument("--series", action="store_true", help="also keep every case's rows in DIR/series.zarr")
+    s.add_argument("--plot", metavar="PNG", help="plot each metric against the varied parameters")
+    s.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
+    s.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="a fixed parameter (repeatable)")
+    s.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
+    s.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
+    s.add_argument("--step-timeout", type=float, metavar="S", help="a hang, per macro step of a case (s)")
+    s.add_argument("--progress", action="store_true", help="show progress even when stderr is not a tty")
+    s.add_argument("-q", "--quiet", action="store_true", help="print errors only")
 
 
 def _version() -> str:
@@ -219,6 +265,8 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             if args.plot:
                 print(f"  plot written to {args.plot}")
         return 0
+    if args.command == "sweep":
+        return _sweep(args, quiet)
     if args.command == "validate":
         problems = api.validate(args.scenario)
         for pr in problems:
@@ -259,6 +307,53 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         print(f"wrote {png}")
         return 0
     raise api.UsageError(f"unknown command {args.command}")
+
+
+def _sweep(args: argparse.Namespace, quiet: bool) -> int:
+    from master.sweeps import sweep
+
+    out = Path(args.out) if args.out else Path("results") / f"sweep-{Path(args.scenario).stem}"
+    try:
+        result = sweep(
+            args.scenario,
+            args.vary,
+            method=args.method,
+            samples=args.samples,
+            seed=args.seed,
+            metrics=args.metric,
+            out=out,
+            series=args.series,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            stop_time=args.stop_time,
+            set_values=args.set,
+            record=args.record,
+            output_interval=args.output_interval,
+            step_timeout=args.step_timeout,
+            progress=args.progress or (sys.stderr.isatty() and not quiet),
+        )
+    except KeyboardInterrupt:
+        print(
+            f"interrupted: the cases finished so far are in {out}; the same command goes on", file=sys.stderr
+        )
+        return 130
+    if args.plot:
+        from master.sweeps.plot import plot_sweep
+
+        plot_sweep(result, args.plot, title=Path(args.scenario).stem)
+    if not quiet:
+        print(
+            f"{len(result.rows)} cases: {result.ran} run ({result.failed} failed), {result.skipped} done "
+            f"earlier; {out / 'cases.parquet'}" + (f", {out / 'series.zarr'}" if args.series else "")
+        )
+        failed = [row for row in result.rows if row["status"] != "ok"]
+        for row in failed[:SHOWN_FAILURES]:
+            print(f"  case {row['index']} {row['status']}: {row['message']}")
+        if len(failed) > SHOWN_FAILURES:
+            print(f"  ... and {len(failed) - SHOWN_FAILURES} more: see the status column")
+        if args.plot:
+            print(f"  plot written to {args.plot}")
+    return 0
 
 
 if __name__ == "__main__":

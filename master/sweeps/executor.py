@@ -1,0 +1,122 @@
+"""Where many runs execute: a dask.distributed cluster, local or remote, through one code path.
+
+Without a scheduler address a LocalCluster of worker processes (one thread each: every task is a
+whole run, itself in a worker process of its own) starts with the executor and stops with it;
+with one ("tcp://host:port") the tasks go to that cluster, whose workers must have this package
+installed and see the scenario's files at the same paths.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+import os
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+from master.sweeps.cases import SweepError
+
+
+def usable_cpus() -> int:
+    return len(os.sched_getaffinity(0))
+
+
+class Executor:
+    """`with Executor(workers=4) as ex: for i, outcome in ex.map(fn, items, shared): ...`"""
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None):
+        if workers is not None and workers < 1:
+            raise SweepError(f"--workers {workers}: at least 1")
+        if workers is not None and scheduler is not None:
+            raise SweepError("--workers sizes a local cluster; an existing one (--scheduler) has its own")
+        self.workers = workers or usable_cpus()
+        self.scheduler = scheduler
+        self._stack = contextlib.ExitStack()
+        self.client: Any = None
+
+    def __enter__(self) -> Executor:
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise SweepError(
+                "sweeps run on dask.distributed, which is not installed: pip install 'master[sweep]'"
+            ) from None
+        try:
+            if self.scheduler is None:
+                cluster = self._stack.enter_context(
+                    LocalCluster(
+                        n_workers=self.workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=":0",  # any free port: several sweeps may run at once
+                    )
+                )
+                self.client = self._stack.enter_context(Client(cluster))
+            else:
+                self.client = self._stack.enter_context(Client(self.scheduler, timeout="10s"))
+        except OSError as e:
+            self._stack.close()
+            where = self.scheduler or "a local cluster"
+            raise SweepError(f"--scheduler {where}: cannot connect ({e})") from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stack.close()
+
+    @property
+    def dashboard(self) -> str | None:
+        """The Dask dashboard's address (None without bokeh)."""
+        try:
+            return self.client.dashboard_link
+        except (AttributeError, KeyError):
+            return None
+
+    @property
+    def size(self) -> int:
+        """Worker threads of the cluster now."""
+        return sum(w["nthreads"] for w in self.client.scheduler_info()["workers"].values())
+
+    def map(self, fn: Callable, items: Sequence, *shared: Any) -> Iterator[tuple[int, Any]]:
+        """fn(*shared, item) for every item, as the results come: (index, result), or (index,
+        exception) for a task the cluster could not run (e.g. its worker died). `shared` objects
+        travel to each worker once."""
+        from distributed import as_completed
+
+        held = [self.client.scatter(obj, broadcast=True, hash=False) for obj in shared]
+        futures = {self.client.submit(fn, *held, item, pure=False): i for i, item in enumerate(items)}
+        try:
+            for future in as_completed(futures):
+                i = futures[future]
+                try:
+                    yield i, future.result()
+                except Exception as e:  # KilledWorker, CommClosedError, ...: the case is lost
+                    yield i, e
+        finally:
+            self.client.cancel(list(futures))
+
+
+_lifted = {"count": 0, "daemon": None}
+_lift_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def children_allowed() -> Iterator[None]:
+    """Let a run start its worker process inside a Dask worker.
+
+    Dask runs its workers as daemonic processes, and multiprocessing refuses children to those
+    (a daemon's children would be orphaned at its exit). A run's workers watch their parent and
+    are stopped by it, so the rule does not apply to them; it is lifted while any run of this
+    process (one per worker thread) starts or runs."""
+    config = mp.current_process()._config  # the flag's only home; Process.daemon cannot be reset
+    with _lift_lock:
+        if _lifted["count"] == 0:
+            _lifted["daemon"] = config.pop("daemon", None)
+        _lifted["count"] += 1
+    try:
+        yield
+    finally:
+        with _lift_lock:
+            _lifted["count"] -= 1
+            if _lifted["count"] == 0 and _lifted["daemon"] is not None:
+                config["daemon"] = _lifted["daemon"]
