@@ -50,7 +50,7 @@ def assert_matches_single_runs(result, series: bool) -> None:
 def test_grid_on_a_local_cluster_matches_single_runs_and_a_rerun_skips_it(tmp_path):
     kw = dict(metrics=["peak=max(abs(mass1.x))"], out=tmp_path, workers=2, stop_time="2")
     result = master.sweep(OSCILLATOR, GRID, series=True, **kw)
-    assert (result.ran, result.skipped, result.failed) == (12, 0, 0)
+    assert (result.ran, result.skipped, result.failed) == (12, 0, 0), result.rows[0]["message"]
     assert_matches_single_runs(result, series=True)
     table = pq.read_table(tmp_path / "cases.parquet").to_pylist()
     assert [r["case"] for r in table] == [r["case"] for r in result.rows]

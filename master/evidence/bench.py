@@ -421,30 +421,53 @@ def plot(rows: list[Row], path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def bench(scenario: str | Path, out_dir: Path, quick: bool = False, repeats: int = 3) -> list[Row]:
-    """Run the sweep of a scene; write <out_dir>/<scene>[-quick].csv and .png; return the rows."""
+def bench(
+    scenario: str | Path,
+    out_dir: Path,
+    quick: bool = False,
+    repeats: int = 3,
+    workers: int = 1,
+    scheduler: str | None = None,
+) -> list[Row]:
+    """Run the sweep of a scene; write <out_dir>/<scene>[-quick].csv and .png; return the rows.
+
+    The configurations run through the sweep's executor (master.sweeps.executor): a local Dask
+    cluster of `workers` processes, one by default so that no two timed runs share the machine,
+    or the cluster at `scheduler`."""
     from master.api import load_scenario
+    from master.sweeps.executor import Executor
 
     sc = load_scenario(scenario)
     p = profile_for(sc)
     base = base_scene(sc, p)
     ref = reference(base)
     lin = None if p.generic else linearize(apply(sc, p, p.base), t=p.linearize_at)  # FMUs of our own
-    rows = []
     configs = configurations(p, quick)
-    for i, c in enumerate(configs):
-        if sys.stderr.isatty():  # a full sweep takes a while
-            print(f"\r[{i + 1}/{len(configs)}] {c.label:<70}", end="", file=sys.stderr, flush=True)
-        row = measure(sc, p, c, ref, repeats)
-        if lin is not None:
-            row.rho = spectral_radius(linear_scheme(lin, p, c), float(c.macro_step))
-        rows.append(row)
+    rows: list[Row | None] = [None] * len(configs)
+    with Executor(None if scheduler else workers, scheduler) as ex:
+        for done, (i, row) in enumerate(ex.map(_measure, configs, sc, p, ref, repeats), start=1):
+            c = configs[i]
+            if not isinstance(row, Row):  # the cluster lost it (its worker died)
+                row = Row(c, float("nan"), [], float("inf"), float("inf"), "", False, f"lost: {row}")
+            if lin is not None:
+                row.rho = spectral_radius(linear_scheme(lin, p, c), float(c.macro_step))
+            rows[i] = row
+            if sys.stderr.isatty():  # a full sweep takes a while
+                print(f"\r[{done}/{len(configs)}] {c.label:<70}", end="", file=sys.stderr, flush=True)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     stem = (Path(sc.path).stem if p.generic else Path(sc.path).parent.name) + ("-quick" if quick else "")
-    write_csv(rows, out_dir / f"{stem}.csv")
-    plot(rows, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)")
-    return rows
+    measured = [r for r in rows if r is not None]
+    write_csv(measured, out_dir / f"{stem}.csv")
+    plot(
+        measured, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)"
+    )
+    return measured
+
+
+def _measure(sc: Scenario, p: Profile, ref: Trajectory, repeats: int, c: Config) -> Row:
+    """One configuration, as a task of the executor."""
+    return measure(sc, p, c, ref, repeats)
 
 
 def report(rows: list[Row], baseline: Config) -> str:
@@ -482,6 +505,13 @@ def main(argv: list[str] | None = None) -> int:
         "--out", default=None, help="folder for the CSV table and PNG plot (default: results/bench-SCENE)"
     )
     ap.add_argument("--repeats", type=int, default=3, help="runs per configuration; wall time is the median")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="configurations timed at once on a local Dask cluster (default 1: timings undisturbed)",
+    )
+    ap.add_argument("--scheduler", metavar="ADDRESS", help="run the configurations on this Dask cluster")
     a = ap.parse_args(argv)
     from master.api import UsageError, load_scenario
     from master.scenario import ScenarioError
@@ -489,7 +519,9 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(a.out) if a.out else Path("results") / f"bench-{Path(a.scenario).stem}"
     try:
         p = profile_for(load_scenario(a.scenario))
-        rows = bench(a.scenario, out, quick=a.quick, repeats=a.repeats)
+        rows = bench(
+            a.scenario, out, quick=a.quick, repeats=a.repeats, workers=a.workers, scheduler=a.scheduler
+        )
     except (UsageError, ScenarioError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

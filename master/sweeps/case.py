@@ -15,7 +15,6 @@ import numpy as np
 
 from master.scenario.model import Scenario
 from master.sweeps.cases import Range
-from master.sweeps.executor import children_allowed
 from master.sweeps.metrics import Metric
 
 OK, FAILED, INVALID, LOST = "ok", "failed", "invalid", "lost"
@@ -61,8 +60,7 @@ def run_case(sc: Scenario, ranges: list[Range], options: CaseOptions, values: di
     status, message, data = OK, "", None
     try:
         scene = apply_case(sc, ranges, values)
-        with children_allowed():
-            data = run(scene, backend=options.backend, step_timeout=options.step_timeout).data
+        data = run(scene, backend=options.backend, step_timeout=options.step_timeout).data
     except BadValue as e:
         status, message = INVALID, str(e)
     except SimulationError as e:

@@ -14,6 +14,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
+from uuid import uuid4
 
 from master.sweeps.cases import SweepError
 
@@ -84,7 +85,12 @@ class Executor:
         from distributed import as_completed
 
         held = [self.client.scatter(obj, broadcast=True, hash=False) for obj in shared]
-        futures = {self.client.submit(fn, *held, item, pure=False): i for i, item in enumerate(items)}
+        futures = {
+            self.client.submit(
+                _in_worker, fn, *held, item, pure=False, key=f"{fn.__name__}-{i}-{uuid4().hex}"
+            ): i
+            for i, item in enumerate(items)
+        }
         try:
             for future in as_completed(futures):
                 i = futures[future]
@@ -94,6 +100,12 @@ class Executor:
                     yield i, e
         finally:
             self.client.cancel(list(futures))
+
+
+def _in_worker(fn: Callable, *args: Any) -> Any:
+    """A task: `fn(*args)` in a Dask worker, where it may start worker processes of its own."""
+    with children_allowed():
+        return fn(*args)
 
 
 _lifted = {"count": 0, "daemon": None}

@@ -38,6 +38,8 @@ class SweepResult:
     failed: int = 0
     dashboard: str | None = None
     points: list[dict] = field(default_factory=list)  # the varied values of each case, in order
+    startup_time: float = 0.0  # s to start (or reach) the cluster
+    cases_time: float = 0.0  # s from the first case sent to the last result back
 
 
 def sweep(
@@ -113,10 +115,13 @@ def sweep(
     shown = _Progress(len(todo), progress or sys.stderr.isatty())
     try:
         if todo:
+            t0 = time.perf_counter()
             with Executor(workers, scheduler) as ex:
                 result.dashboard = ex.dashboard
                 shown.start(ex)
                 last = time.monotonic()
+                t1 = time.perf_counter()
+                result.startup_time = t1 - t0
                 for j, outcome in ex.map(run_case, [cases[i] for i in todo], sc, ranges, options):
                     i = todo[j]
                     row = _row(keys[i], i, cases[i], outcome, columns, checked)
@@ -130,6 +135,7 @@ def sweep(
                     if time.monotonic() - last > FLUSH_S:
                         flush()
                         last = time.monotonic()
+                result.cases_time = time.perf_counter() - t1
     finally:
         flush()
         shown.end()
