@@ -340,7 +340,7 @@ def _sweep(args: argparse.Namespace, quiet: bool) -> int:
     if args.plot:
         from master.sweeps.plot import plot_sweep
 
-        plot_sweep(result, args.plot, title=Path(args.scenario).stem)
+        plot_sweep(result, args.plot, title=f"{result.scene}: {len(result.rows)} cases")
     if not quiet:
         print(
             f"{len(result.rows)} cases: {result.ran} run ({result.failed} failed), {result.skipped} done "

@@ -84,10 +84,11 @@ class Executor:
         travel to each worker once."""
         from distributed import as_completed
 
-        held = [self.client.scatter(obj, broadcast=True, hash=False) for obj in shared]
+        # one object for all: scatter would send a list's items one by one (and fail on an empty one)
+        (held,) = self.client.scatter([shared], broadcast=True, hash=False)
         futures = {
             self.client.submit(
-                _in_worker, fn, *held, item, pure=False, key=f"{fn.__name__}-{i}-{uuid4().hex}"
+                _in_worker, fn, held, item, pure=False, key=f"{fn.__name__}-{i}-{uuid4().hex}"
             ): i
             for i, item in enumerate(items)
         }
@@ -102,10 +103,10 @@ class Executor:
             self.client.cancel(list(futures))
 
 
-def _in_worker(fn: Callable, *args: Any) -> Any:
-    """A task: `fn(*args)` in a Dask worker, where it may start worker processes of its own."""
+def _in_worker(fn: Callable, shared: tuple, item: Any) -> Any:
+    """A task: `fn(*shared, item)` in a Dask worker, where it may start worker processes of its own."""
     with children_allowed():
-        return fn(*args)
+        return fn(*shared, item)
 
 
 _lifted = {"count": 0, "daemon": None}

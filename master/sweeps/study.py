@@ -33,6 +33,7 @@ class SweepResult:
 
     folder: Path
     rows: list[dict]
+    scene: str = ""  # the scenario's name
     ran: int = 0
     skipped: int = 0
     failed: int = 0
@@ -99,7 +100,7 @@ def sweep(
     others = [r for r in earlier if r["case"] not in ours]  # rows of other sweeps in the folder: kept
     rows: dict[str, dict] = {k: {**done[k], "index": i} for i, k in enumerate(keys) if k in done}
     todo = [i for i, k in enumerate(keys) if k not in done]
-    result = SweepResult(folder, [], skipped=len(rows), points=cases)
+    result = SweepResult(folder, [], scene=sc.name, skipped=len(rows), points=cases)
     grid = _time_grid(plan)
     options = CaseOptions(metrics=checked, series=series, step_timeout=step_timeout)
     pending: list[tuple[int, np.ndarray]] = []  # (case index, rows) not yet in the series store
