@@ -9,6 +9,7 @@ Times are in seconds.
 from __future__ import annotations
 
 import ctypes
+import functools
 import shutil
 import tempfile
 import zipfile
@@ -79,10 +80,20 @@ def _plain_type(t: str) -> str:
 
 
 def read_description(path: Path) -> ModelDescription:
-    """Read and check the model description of a Co-Simulation FMU (FMI 2.0 or 3.0)."""
+    """Read and check the model description of a Co-Simulation FMU (FMI 2.0 or 3.0).
+
+    Read once per file version (path, modification time, size) and process: a run asks for it
+    from the planner, the backend and each instance, a sweep from every case. Callers must not
+    change the object they get."""
     path = Path(path)
     if not path.is_file():
         raise FmuError(f"{path}: FMU file not found")
+    st = path.stat()
+    return _read_description(path.resolve(), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescription:
     if not zipfile.is_zipfile(path):
         raise FmuError(f"{path}: not an FMU (not a ZIP archive)")
     try:
@@ -127,8 +138,12 @@ def feedthrough_outputs(md: ModelDescription) -> set[str]:
 
 
 def safe_extract(path: Path, dest: Path) -> Path:
-    """Extract the FMU archive `path` into `dest`; refuse unsafe members (the scenario layer's
-    check, master.scenario.archive.unsafe) and report damaged data as an FmuError."""
+    """Extract what running the FMU archive `path` needs into `dest`; refuse unsafe members (the
+    scenario layer's check, master.scenario.archive.unsafe) and report damaged data as an FmuError.
+
+    Every member is checked; documentation/, other platforms' binaries and, when this platform's
+    binary is there, sources/ are not written (a run extracts each FMU afresh: most of an FMU
+    built from C is its sources)."""
     from master.scenario.archive import DAMAGED, unsafe
 
     dest = Path(dest).resolve()
@@ -141,10 +156,20 @@ def safe_extract(path: Path, dest: Path) -> Path:
                 target = (dest / info.filename).resolve()
                 if target != dest and dest not in target.parents:
                     raise FmuError(f"{path}: archive member escapes the extraction folder: {info.filename!r}")
-            zf.extractall(dest)
+            zf.extractall(dest, members=_needed(zf.namelist()))
     except DAMAGED as err:
         raise FmuError(f"{path}: damaged archive: {err}") from None
     return dest
+
+
+def _needed(names: list[str]) -> list[str]:
+    """The archive members a run of this platform reads."""
+    from fmpy import platform, platform_tuple
+
+    ours = (f"binaries/{platform}/", f"binaries/{platform_tuple}/")
+    has_binary = any(n.startswith(ours) and not n.endswith("/") for n in names)
+    skip = ("documentation/", "binaries/") + (("sources/",) if has_binary else ())
+    return [n for n in names if n.startswith(ours) or not n.startswith(skip)]
 
 
 # FMI 2 log messages reach the instance through its componentEnvironment: one logger serves all,

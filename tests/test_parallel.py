@@ -202,7 +202,7 @@ def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_pa
     msg = str(e)
     assert e.component == "c1" and "c1" in msg
     assert CAUSES[mode] in msg
-    assert e.time == pytest.approx(0.5, abs=0.011)
+    assert e.time == pytest.approx(0.5, abs=0.011), msg
     assert "0.5" in msg
     data = e.result.data
     assert data["time"][-1] == pytest.approx(0.5, abs=0.011)
