@@ -2,6 +2,7 @@
 scheduler with two workers started as separate processes on 127.0.0.1. Every case is a real run
 of real FMUs; the tests stop every process they start."""
 
+import os
 import subprocess
 import sys
 import time
@@ -208,3 +209,23 @@ def test_cli_sweep_writes_the_table_and_refuses_bad_input_in_one_line(tmp_path):
                               text=True, cwd=tmp_path, timeout=120)  # fmt: skip
         assert done.returncode == 1 and words in done.stderr, done.stderr
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def _flaky(suffix: str, item: str) -> str:
+    """A task for the executor test: fails for "boom", takes its Dask worker down for "die"."""
+    if item == "boom":
+        raise ValueError("boom")
+    if item == "die":
+        os._exit(3)
+    return item + suffix
+
+
+def test_the_executor_keeps_going_past_an_item_that_raises_or_kills_its_worker():
+    from master.sweeps.executor import Executor
+
+    with Executor(workers=2) as ex:  # Dask retries a task whose worker died, up to allowed-failures
+        outcomes = dict(ex.map(_flaky, ["a", "boom", "die", "b"], "!"))
+    assert outcomes[0] == "a!" and outcomes[3] == "b!"
+    assert isinstance(outcomes[1], ValueError)
+    assert "KilledWorker" in type(outcomes[2]).__name__  # the cluster says it lost the task
+    assert_no_children()

@@ -18,6 +18,9 @@ from uuid import uuid4
 
 from master.sweeps.cases import SweepError
 
+TASKS_PER_WORKER = 16  # at least this many tasks per worker thread: the last ones keep every worker busy
+MAX_BATCH = 8  # items per task at most: a lost worker loses no more, progress stays fine-grained
+
 
 def usable_cpus() -> int:
     return len(os.sched_getaffinity(0))
@@ -80,33 +83,56 @@ class Executor:
 
     def map(self, fn: Callable, items: Sequence, *shared: Any) -> Iterator[tuple[int, Any]]:
         """fn(*shared, item) for every item, as the results come: (index, result), or (index,
-        exception) for a task the cluster could not run (e.g. its worker died). `shared` objects
-        travel to each worker once."""
+        exception) for an item that raised or that the cluster could not run (e.g. its worker
+        died). `shared` objects travel to each worker once. Short items travel in batches (at
+        least TASKS_PER_WORKER tasks per worker thread, at most MAX_BATCH items each): every Dask
+        task costs a few ms of the scheduler's, the client's and the worker's processors."""
         from distributed import as_completed
 
-        # one object for all: scatter would send a list's items one by one (and fail on an empty one)
-        (held,) = self.client.scatter([shared], broadcast=True, hash=False)
+        # a task that returns them, not scattered data: the scheduler can make it again when a worker
+        # holding it dies (scattered data would be lost, and every task needing it with it)
+        held = self.client.submit(_same, shared, pure=False, key=f"shared-{uuid4().hex}")
+        k = max(1, min(MAX_BATCH, len(items) // (max(self.size, 1) * TASKS_PER_WORKER)))
+        batches = [list(range(i, min(i + k, len(items)))) for i in range(0, len(items), k)]
+        name = getattr(fn, "__name__", "task")
         futures = {
             self.client.submit(
-                _in_worker, fn, held, item, pure=False, key=f"{fn.__name__}-{i}-{uuid4().hex}"
-            ): i
-            for i, item in enumerate(items)
+                _in_worker,
+                fn,
+                held,
+                [items[i] for i in batch],
+                pure=False,
+                key=f"{name}-{batch[0]}-{uuid4().hex}",
+            ): batch
+            for batch in batches
         }
         try:
             for future in as_completed(futures):
-                i = futures[future]
+                batch = futures[future]
                 try:
-                    yield i, future.result()
-                except Exception as e:  # KilledWorker, CommClosedError, ...: the case is lost
-                    yield i, e
+                    outcomes = future.result()
+                except Exception as e:  # KilledWorker, CommClosedError, ...: the batch is lost
+                    outcomes = [e] * len(batch)
+                yield from zip(batch, outcomes, strict=True)
         finally:
-            self.client.cancel(list(futures))
+            self.client.cancel([*futures, held])
 
 
-def _in_worker(fn: Callable, shared: tuple, item: Any) -> Any:
-    """A task: `fn(*shared, item)` in a Dask worker, where it may start worker processes of its own."""
+def _same(shared: tuple) -> tuple:
+    return shared
+
+
+def _in_worker(fn: Callable, shared: tuple, batch: list) -> list:
+    """A task: `fn(*shared, item)` for each item of a batch in a Dask worker, where it may start
+    worker processes of its own; an item that raises gives its exception, the others go on."""
+    out: list = []
     with children_allowed():
-        return fn(*shared, item)
+        for item in batch:
+            try:
+                out.append(fn(*shared, item))
+            except Exception as e:
+                out.append(e)
+    return out
 
 
 _lifted = {"count": 0, "daemon": None}
