@@ -6,6 +6,7 @@ import argparse
 import json
 import logging
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -332,11 +333,11 @@ def _sweep(args: argparse.Namespace, quiet: bool) -> int:
             step_timeout=args.step_timeout,
             progress=args.progress or (sys.stderr.isatty() and not quiet),
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM / SIGHUP (driver.Interrupted has .signum)
         print(
             f"interrupted: the cases finished so far are in {out}; the same command goes on", file=sys.stderr
         )
-        return 130
+        return 128 + getattr(e, "signum", signal.SIGINT)
     if args.plot:
         from master.sweeps.plot import plot_sweep
 

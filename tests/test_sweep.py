@@ -3,6 +3,7 @@ scheduler with two workers started as separate processes on 127.0.0.1. Every cas
 of real FMUs; the tests stop every process they start."""
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -10,6 +11,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+import psutil
 import pyarrow.parquet as pq
 import pytest
 import xarray as xr
@@ -232,3 +234,29 @@ def test_the_executor_keeps_going_past_an_item_that_raises_or_kills_its_worker()
         assert lost[0] == 0 and "KilledWorker" in type(lost[1]).__name__
         assert list(ex.map(_flaky, ["c"], "?")) == [(0, "c?")]  # the cluster goes on
     assert_no_children()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(tmp_path, sig):
+    out = tmp_path / "sw"
+    cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:30", "--vary",
+           "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "cases.parquet").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)  # the table is first written 2 s after the first case
+        helpers = psutil.Process(proc.pid).children(recursive=True)  # the Dask cluster, the runs' workers
+        assert helpers
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + sig, err
+    assert "interrupted" in err and "Traceback" not in err
+    kept = pq.read_table(out / "cases.parquet").to_pylist()
+    assert 0 < len(kept) < 60 and all(r["status"] == "ok" for r in kept)
+    _, alive = psutil.wait_procs(helpers, timeout=10)
+    assert alive == []
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert f"60 cases: {60 - len(kept)} run (0 failed), {len(kept)} done earlier" in done.stdout, done.stderr

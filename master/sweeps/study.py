@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from master.backends.driver import stop_signals
 from master.scenario.model import Scenario
 from master.sweeps.case import FINISHED, LOST, OK, CaseOptions, run_case
 from master.sweeps.cases import SweepError, bind, case_key, parse_vary, points, scenario_hash
@@ -114,29 +115,30 @@ def sweep(
             pending.clear()
 
     shown = _Progress(len(todo), progress or sys.stderr.isatty())
-    try:
-        if todo:
-            t0 = time.perf_counter()
-            with Executor(workers, scheduler) as ex:
-                result.dashboard = ex.dashboard
-                shown.start(ex)
-                last = time.monotonic()
-                t1 = time.perf_counter()
-                result.startup_time = t1 - t0
-                for j, outcome in ex.map(run_case, [cases[i] for i in todo], sc, ranges, options):
-                    i = todo[j]
-                    row = _row(keys[i], i, cases[i], outcome, columns, checked)
-                    rows[keys[i]] = row
-                    result.ran += 1
-                    result.failed += row["status"] != OK
-                    if series and row["status"] != LOST:
-                        s = outcome.get("series") if isinstance(outcome, dict) else None
-                        pending.append((i, s if s is not None else _no_rows(columns)))
-                    shown.update(result.ran, result.failed)
-                    if time.monotonic() - last > FLUSH_S:
-                        flush()
-                        last = time.monotonic()
-                result.cases_time = time.perf_counter() - t1
+    try:  # SIGTERM and SIGHUP stop it as Ctrl-C does: the finished cases are written
+        with stop_signals():
+            if todo:
+                t0 = time.perf_counter()
+                with Executor(workers, scheduler) as ex:
+                    result.dashboard = ex.dashboard
+                    shown.start(ex)
+                    last = time.monotonic()
+                    t1 = time.perf_counter()
+                    result.startup_time = t1 - t0
+                    for j, outcome in ex.map(run_case, [cases[i] for i in todo], sc, ranges, options):
+                        i = todo[j]
+                        row = _row(keys[i], i, cases[i], outcome, columns, checked)
+                        rows[keys[i]] = row
+                        result.ran += 1
+                        result.failed += row["status"] != OK
+                        if series and row["status"] != LOST:
+                            s = outcome.get("series") if isinstance(outcome, dict) else None
+                            pending.append((i, s if s is not None else _no_rows(columns)))
+                        shown.update(result.ran, result.failed)
+                        if time.monotonic() - last > FLUSH_S:
+                            flush()
+                            last = time.monotonic()
+                    result.cases_time = time.perf_counter() - t1
     finally:
         flush()
         shown.end()
