@@ -89,10 +89,12 @@ def test_a_crashing_case_is_recorded_and_the_others_complete(tmp_path):
     assert_no_children()
 
 
-@pytest.fixture(scope="module")
-def dask_cluster(tmp_path_factory):
-    """`dask scheduler` and two `dask worker` processes on 127.0.0.1, stopped at the end."""
-    folder = tmp_path_factory.mktemp("dask")
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """`dask scheduler` and two `dask worker` processes on 127.0.0.1, stopped after the test (the
+    other tests check that no process of theirs is left)."""
+    folder = tmp_path / "dask"
+    folder.mkdir()
     file = folder / "scheduler.json"
     common = dict(cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
