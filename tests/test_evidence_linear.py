@@ -100,3 +100,33 @@ def test_monolithic_matrix_of_the_split_is_the_oscillator():
     for split in ("force", "displacement"):
         a = linear.monolithic_matrix(split_scheme(SET_A, split=split))
         assert np.allclose(a, SET_A.matrix())
+
+
+def _windowed(substeps: int, order: int) -> LinearScheme:
+    """Two-mass oscillator, m1 = 100 kg, coupling spring 100 N/m, force split, RK4, polynomial
+    inputs: its stability has windows (unstable, stable again, unstable, ...) as H grows."""
+    import dataclasses
+
+    p = dataclasses.replace(SET_A, m1=100.0, cc=100.0)
+    return split_scheme(p, split="force", order=order, substeps=(substeps, substeps), inputs="polynomial")
+
+
+def test_largest_stable_step_is_the_first_crossing_of_a_scan_with_windows():
+    scheme = _windowed(5, 3)
+    hs = np.linspace(0.01, 1.5, 600)  # an independent dense eigenvalue scan
+    grows = [not linear.is_stable(scheme, h) for h in hs]
+    first = int(np.argmax(grows))
+    assert 0 < first and not all(grows[first:]), "the scan must show a window (unstable, then stable)"
+    h = largest_stable_step(scheme, 0.01, 3.0, rel_tol=1e-4)
+    assert hs[first - 1] <= h < hs[first]
+    assert linear.is_stable(scheme, h) and not linear.is_stable(scheme, h * (1 + 2e-4))
+
+
+def test_largest_stable_step_does_not_jump_over_the_window_below_a_wider_one():
+    # the issue's case: order 2, 50 substeps; unstable at 0.95 s (rho 1.036, the runtime grows by
+    # that factor per macro step there), stable again from about 1.0 s, first crossing at 0.916 s
+    scheme = _windowed(50, 2)
+    assert linear.spectral_radius(scheme, 0.95) == pytest.approx(1.0363, abs=1e-4)
+    assert linear.is_stable(scheme, 1.1)
+    h = largest_stable_step(scheme, 0.5, 1.2)
+    assert h == pytest.approx(0.916, abs=0.002)

@@ -140,8 +140,8 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
 
         k_in = scheme.order_of(c)
 
-        def inputs(j: int, at: float, drivers=drivers, kc=kc, name=c.name, k=k_in) -> np.ndarray:
-            vals = np.zeros(len(drivers))
+        def inputs(j: int, at: float, drivers=drivers, kc=kc, name=c.name, k=k_in, cols=st.x.shape[1:]):
+            vals = np.zeros((len(drivers), *cols))  # one column per state vector stepped side by side
             for q, d in enumerate(drivers):
                 if d is None:
                     continue  # undriven: the linearisation is about its operating value
@@ -220,16 +220,18 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t, coun
 
 
 def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
-    """One steady Jacobi macro step of size big_h (s) applied to the extended state z."""
+    """One steady Jacobi macro step of size big_h (s) applied to the extended state z (a vector,
+    or a matrix whose columns are stepped side by side)."""
     lay = _Layout(scheme)
     z = np.asarray(z, dtype=float)
+    cols = z.shape[1:]
     k = scheme.max_order()
     n = k + 1  # any macro step past the start-up
     states, hist = {}, {}
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
         states[c.name] = _State(z[sx].copy(), z[s1].copy(), z[s2].copy(), z[sd].copy(), 2)
-        ys = z[lay.samples[c.name]].reshape(k + 1, len(c.outputs))
+        ys = z[lay.samples[c.name]].reshape(k + 1, len(c.outputs), *cols)
         hist[c.name] = {n * c.step_ratio - i: ys[i] for i in range(k + 1)}
     _advance(scheme, states, hist, hist, n, big_h)
     out = np.empty_like(z)
@@ -243,9 +245,8 @@ def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
 
 
 def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:
-    """G(H): the macro-step map on the extended state."""
-    n = _Layout(scheme).size
-    return np.column_stack([macro_step(scheme, e, big_h) for e in np.eye(n)])
+    """G(H): the macro-step map on the extended state (every unit vector stepped at once)."""
+    return macro_step(scheme, np.eye(_Layout(scheme).size), big_h)
 
 
 def spectral_radius(scheme: LinearScheme, big_h: float) -> float:
@@ -283,40 +284,84 @@ def _block_diag(blocks: list[np.ndarray], rows: list[int], cols: list[int]) -> n
     return out
 
 
+RHO_TOL = 1e-10  # relative: the rounding of the eigenvalue computation, not a stability margin
+
+
 def is_stable(scheme: LinearScheme, big_h: float, growth: float | None = None) -> bool:
-    """Whether the scheme adds no growth: rho(G(H)) <= exp(max(a, 0) H) (1 + 1e-6), a the
-    largest real part of the coupled system's own eigenvalues (1/s; computed if None), so that
-    neutral or slowly drifting physical modes of a linearised scene are not counted."""
-    if growth is None:
-        growth = float(np.max(np.linalg.eigvals(monolithic_matrix(scheme)).real))
-    return spectral_radius(scheme, big_h) <= np.exp(max(growth, 0.0) * big_h) * (1.0 + 1e-6)
+    """Whether the scheme adds no growth: rho(G(H)) <= exp(max(a, 0) H) (up to rounding, RHO_TOL),
+    a the largest real part of the coupled system's own eigenvalues (1/s; computed if None), so
+    that neutral or slowly drifting physical modes of a linearised scene are not counted."""
+    return _margin(scheme, big_h, _growth(scheme) if growth is None else growth) <= 0.0
 
 
-def largest_stable_step(scheme: LinearScheme, h_min: float, h_max: float, rel_tol: float = 1e-3) -> float:
-    """Largest H (s) in [h_min, h_max] below which the scheme is stable (`is_stable`), scanning
-    up then bisecting.
+def _growth(scheme: LinearScheme) -> float:
+    return float(np.max(np.linalg.eigvals(monolithic_matrix(scheme)).real))
 
-    Returns h_max if the scheme is stable on the whole scan, raises ValueError if h_min is unstable.
+
+def _margin(scheme: LinearScheme, big_h: float, growth: float) -> float:
+    """How far the scheme is from stable at H: rho(G) / exp(max(a, 0) H) - 1 - RHO_TOL (> 0: it grows)."""
+    return spectral_radius(scheme, big_h) / np.exp(max(growth, 0.0) * big_h) - 1.0 - RHO_TOL
+
+
+def largest_stable_step(
+    scheme: LinearScheme, h_min: float, h_max: float, rel_tol: float = 1e-3, spacing: float = 0.01
+) -> float:
+    """The first crossing: the largest H (s) in [h_min, h_max] such that the scheme is stable
+    (`is_stable`) at every step from h_min to H, to rel_tol.
+
+    The stability margin is sampled at geometric steps `spacing` apart (relative: 1 %) and the
+    first sign change bisected. Between windows of instability the margin of a damped scheme
+    falls slowly and monotonically, so a window shows as a sample above zero, or as a local
+    maximum of the samples, around which the true maximum is searched (golden section): only a
+    window narrower than the spacing whose rise no sample sees is missed. Returns h_max if the
+    scheme is stable on the whole range, raises ValueError if h_min is unstable.
     """
-    growth = float(np.max(np.linalg.eigvals(monolithic_matrix(scheme)).real))
-    if not is_stable(scheme, h_min, growth):
+    growth = _growth(scheme)
+
+    def margin(h: float) -> float:
+        return _margin(scheme, h, growth)
+
+    grid = np.geomspace(h_min, h_max, max(3, int(np.ceil(np.log(h_max / h_min) / np.log1p(spacing))) + 1))
+    m = [margin(h) for h in grid]
+    if m[0] > 0:
         raise ValueError(f"unstable already at the smallest step {h_min} s")
-    grid = np.geomspace(h_min, h_max, 60)
-    lo = h_min
-    for h in grid[1:]:
-        if not is_stable(scheme, h, growth):
-            hi = h
-            break
-        lo = h
-    else:
-        return h_max
+    for i in range(1, len(grid)):
+        if m[i] > 0:
+            return _first_crossing(margin, grid[i - 1], grid[i], rel_tol)
+        if i + 1 < len(grid) and m[i] > m[i - 1] and m[i] >= m[i + 1]:  # a peak near grid[i]
+            h_peak, m_peak = _maximum(margin, grid[i - 1], grid[i + 1], rel_tol)
+            if m_peak > 0:
+                return _first_crossing(margin, grid[i - 1], h_peak, rel_tol)
+    return h_max
+
+
+def _first_crossing(margin, lo: float, hi: float, rel_tol: float) -> float:
+    """Bisection: the last stable step below the crossing in (lo, hi] (margin(lo) <= 0 < margin(hi))."""
     while hi - lo > rel_tol * lo:
         mid = 0.5 * (lo + hi)
-        if is_stable(scheme, mid, growth):
+        if margin(mid) <= 0:
             lo = mid
         else:
             hi = mid
     return lo
+
+
+def _maximum(margin, a: float, b: float, rel_tol: float) -> tuple[float, float]:
+    """(h, margin(h)) at the maximum of the margin on [a, b] (golden section; stops early once
+    the margin is positive: a crossing is all that is needed)."""
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - ratio * (b - a), a + ratio * (b - a)
+    mc, md = margin(c), margin(d)
+    while b - a > rel_tol * a and max(mc, md) <= 0:
+        if mc >= md:
+            b, d, md = d, c, mc
+            c = b - ratio * (b - a)
+            mc = margin(c)
+        else:
+            a, c, mc = c, d, md
+            d = a + ratio * (b - a)
+            md = margin(d)
+    return (c, mc) if mc >= md else (d, md)
 
 
 def initial_outputs(scheme: LinearScheme, x0: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
