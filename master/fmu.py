@@ -35,6 +35,8 @@ RAW_NAMES = {
         "set_input_derivatives": "fmi2SetRealInputDerivatives",
         "get_integer": "fmi2GetInteger",
         "get_boolean": "fmi2GetBoolean",
+        "set_integer": "fmi2SetInteger",
+        "set_boolean": "fmi2SetBoolean",
         "get_state": "fmi2GetFMUstate",
         "set_state": "fmi2SetFMUstate",
         "free_state": "fmi2FreeFMUstate",
@@ -45,6 +47,8 @@ RAW_NAMES = {
         "do_step": "fmi3DoStep",
         "get_integer": "fmi3GetInt32",
         "get_boolean": "fmi3GetBoolean",
+        "set_integer": "fmi3SetInt32",
+        "set_boolean": "fmi3SetBoolean",
         "get_state": "fmi3GetFMUState",
         "set_state": "fmi3SetFMUState",
         "free_state": "fmi3FreeFMUState",
@@ -69,6 +73,9 @@ class VariableInfo:
     start: str | None
     unit: str | None
     description: str | None
+    fmi_type: str = (
+        ""  # as the FMU spells it: Real, Float64, Float32, Int8, ..., Enumeration (fmuinfo.coupling_kind)
+    )
 
 
 def _plain_type(t: str) -> str:
@@ -123,6 +130,7 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
             start=v.start,
             unit=v.unit if v.unit is not None else (v.declaredType.unit if v.declaredType else None),
             description=v.description,
+            fmi_type=v.type,
         )
     return out
 

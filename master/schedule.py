@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from master.fmu import VariableInfo
+from master.scenario.fmuinfo import CONNECTABLE, coupling_kind
 from master.scenario.model import Scenario, Stimulus
 
 MAX_ORDER = 3
@@ -62,6 +63,18 @@ class Clock:
         return Fraction(self.num0 + j * self.dnum, self.den)
 
 
+KINDS = ("Real", "Integer", "Boolean")  # what connections carry, in the kernel's order of inputs
+
+
+def _article(word: str | None) -> str:
+    return f"an {word}" if str(word)[0] in "AEIOU" else f"a {word}"
+
+
+def value_kind(plain_type: str) -> str:
+    """The kind of a connected variable's value from its plain type (fmu.VariableInfo.type)."""
+    return "Integer" if plain_type in ("Integer", "Enumeration") else plain_type
+
+
 @dataclass(frozen=True)
 class Link:
     """Outputs of `source` that drive inputs of `consumer` through polynomials of one order."""
@@ -74,6 +87,7 @@ class Link:
     source_first: bool  # the source completes the macro step before the consumer starts it
     k_source: int  # effective step ratios
     k_consumer: int
+    kind: str = "Real"  # what it carries: Real, or Integer / Boolean (held: order 0)
 
     def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
@@ -244,10 +258,22 @@ def build_plan(
             v = variables[comp].get(var)
             if v is None:
                 raise _err(sc, f"{where}: component {comp} has no variable {var!r}")
-            if v.type != "Real":
-                raise _err(sc, f"{where}: {comp}.{var} is {v.type}; only Real signals can be coupled")
+            version = capabilities.get(comp, Capability()).fmi_version
+            if coupling_kind(v.fmi_type or v.type, version) is None:
+                raise _err(
+                    sc, f"{where}: {comp}.{var} is {v.fmi_type or v.type}; connections carry {CONNECTABLE}"
+                )
             if v.causality != causal:
                 raise _err(sc, f"{where}: {comp}.{var} has causality {v.causality}, {causal} needed")
+        kinds = [
+            coupling_kind(
+                variables[c][n].fmi_type or variables[c][n].type,
+                capabilities.get(c, Capability()).fmi_version,
+            )
+            for c, n in ((cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector))
+        ]
+        if kinds[0] != kinds[1]:
+            raise _err(sc, f"{where}: {_article(kinds[0])} output cannot drive {_article(kinds[1])} input")
         key_in = (cn.end_component, cn.end_connector)
         if key_in in driven:
             raise _err(sc, f"{where}: input {cn.end_component}.{cn.end_connector} is driven twice")
@@ -256,12 +282,14 @@ def build_plan(
         order_ = order_ if cn.extrapolation_order is None else cn.extrapolation_order
         if not 0 <= order_ <= MAX_ORDER:
             raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
-        groups.setdefault((cn.start_component, cn.end_component, order_), []).append(
+        if kinds[0] != "Real":
+            order_ = 0  # Integer and Boolean signals are held between communication points
+        groups.setdefault((cn.start_component, cn.end_component, order_, kinds[0]), []).append(
             (cn.start_connector, cn.end_connector)
         )
     links = []
     startup_steps = 0
-    for (src, dst, order_), pairs in groups.items():
+    for (src, dst, order_, kind), pairs in groups.items():
         first = sc.coupling == "gauss-seidel" and rank[src] < rank[dst]
         lk = Link(
             src,
@@ -272,6 +300,7 @@ def build_plan(
             first,
             comps[src].ratio,
             comps[dst].ratio,
+            kind,
         )
         links.append(lk)
         su = lk.startup()

@@ -122,7 +122,7 @@ def test_interpolate_inputs_steps_once_per_macro_step_only_if_the_fmu_can():
         (dict(connections=(Connection("a", "y", "b", "nope"),)), "has no variable 'nope'"),
         (dict(connections=(Connection("a", "u", "b", "u"),)), "a.u has causality input, output needed"),
         (dict(connections=(Connection("a", "y", "b", "u"), Connection("b", "y", "b", "u"))), "driven twice"),
-        (dict(connections=(Connection("a", "n", "b", "u"),)), "only Real signals"),
+        (dict(connections=(Connection("a", "n", "b", "u"),)), "an Integer output cannot drive a Real input"),
         (dict(connections=(Connection("x", "y", "b", "u"),)), "no component 'x'"),
         (dict(record_interval=Fraction(1, 20)), "multiple of the macro step"),
         (dict(record=(("a", "zz"),)), "record a.zz"),

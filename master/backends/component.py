@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from master.fmu import Fmu
 from master.scenario.model import Component, Scenario
-from master.schedule import Plan
+from master.schedule import KINDS, Plan
 
 
 class SimulationError(Exception):
@@ -44,14 +44,17 @@ def history_capacity(plan: Plan, name: str) -> int:
 
 
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
-    """Real variables of `name` read at each communication point: coupled outputs, then recorded."""
+    """Variables of `name` read at each communication point: the coupled Real outputs, the
+    recorded Real ones, then the coupled Integer and Boolean outputs (kernel.h's order)."""
     out: list[str] = []
-    for lk in plan.links:
-        if lk.source == name:
-            out.extend(o for o in lk.outputs if o not in out)
-    for comp, var in plan.record:
-        if comp == name and var not in out and variables[var].type == "Real":
-            out.append(var)
+    for kind in KINDS:
+        for lk in plan.links:
+            if lk.source == name and lk.kind == kind:
+                out.extend(o for o in lk.outputs if o not in out)
+        if kind == "Real":
+            out.extend(
+                v for c, v in plan.record if c == name and v not in out and variables[v].type == "Real"
+            )
     return out
 
 

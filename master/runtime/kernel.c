@@ -21,11 +21,15 @@ typedef int fmi2_get_real(void *, const uint32_t *, size_t, double *);
 typedef int fmi2_set_derivatives(void *, const uint32_t *, size_t, const int32_t *, const double *);
 typedef int fmi2_get_integer(void *, const uint32_t *, size_t, int32_t *);
 typedef int fmi2_get_boolean(void *, const uint32_t *, size_t, int32_t *);
+typedef int fmi2_set_integer(void *, const uint32_t *, size_t, const int32_t *);
+typedef int fmi2_set_boolean(void *, const uint32_t *, size_t, const int32_t *);
 typedef int fmi3_do_step(void *, double, double, bool, bool *, bool *, bool *, double *);
 typedef int fmi3_set_float64(void *, const uint32_t *, size_t, const double *, size_t);
 typedef int fmi3_get_float64(void *, const uint32_t *, size_t, double *, size_t);
 typedef int fmi3_get_int32(void *, const uint32_t *, size_t, int32_t *, size_t);
 typedef int fmi3_get_boolean(void *, const uint32_t *, size_t, bool *, size_t);
+typedef int fmi3_set_int32(void *, const uint32_t *, size_t, const int32_t *, size_t);
+typedef int fmi3_set_boolean(void *, const uint32_t *, size_t, const bool *, size_t);
 typedef int fmi_get_state(void *, void **);
 typedef int fmi_set_state(void *, void *);
 typedef int fmi_free_state(void *, void **);
@@ -175,16 +179,88 @@ static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
 
-static int set_real(const mk_component *c, const double *v) {
-    if (c->fmi == 3)
-        return ((fmi3_set_float64 *)c->set_real)(c->instance, c->in_vrs, (size_t)c->n_in, v, (size_t)c->n_in);
-    return ((fmi2_set_real *)c->set_real)(c->instance, c->in_vrs, (size_t)c->n_in, v);
+static int set_real(const mk_component *c, const double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_set_float64 *)c->set_real)(c->instance, c->in_vrs, (size_t)n, v, (size_t)n);
+    return ((fmi2_set_real *)c->set_real)(c->instance, c->in_vrs, (size_t)n, v);
 }
 
-static int get_real(const mk_component *c, double *v) {
-    if (c->fmi == 3)
-        return ((fmi3_get_float64 *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v, (size_t)c->n_out);
-    return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)c->n_out, v);
+static int get_real(const mk_component *c, double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_get_float64 *)c->get_real)(c->instance, c->out_vrs, (size_t)n, v, (size_t)n);
+    return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)n, v);
+}
+
+/* Integer (kind MK_INTEGER) or Boolean values v[0..n) of value references vrs, from doubles. */
+static int set_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, const double *v, int32_t n) {
+    int32_t iv[n];
+    bool bv[n];
+    for (int32_t i = 0; i < n; i++) {
+        iv[i] = kind == MK_INTEGER ? (int32_t)v[i] : v[i] != 0.0;
+        bv[i] = v[i] != 0.0;
+    }
+    if (kind == MK_INTEGER)
+        return c->fmi == 3 ? ((fmi3_set_int32 *)c->set_integer)(c->instance, vrs, (size_t)n, iv, (size_t)n)
+                           : ((fmi2_set_integer *)c->set_integer)(c->instance, vrs, (size_t)n, iv);
+    return c->fmi == 3 ? ((fmi3_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, bv, (size_t)n)
+                       : ((fmi2_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, iv);
+}
+
+static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, double *v, int32_t n) {
+    int32_t iv[n];
+    bool bv[n];
+    int st;
+    if (kind == MK_INTEGER)
+        st = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, vrs, (size_t)n, iv, (size_t)n)
+                         : ((fmi2_get_integer *)c->get_integer)(c->instance, vrs, (size_t)n, iv);
+    else if (c->fmi == 3)
+        st = ((fmi3_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, bv, (size_t)n);
+    else
+        st = ((fmi2_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, iv);
+    for (int32_t i = 0; i < n; i++)
+        v[i] = kind == MK_BOOLEAN && c->fmi == 3 ? (bv[i] ? 1.0 : 0.0)
+               : kind == MK_BOOLEAN              ? (iv[i] ? 1.0 : 0.0)
+                                                 : (double)iv[i];
+    return st;
+}
+
+/* Set the inputs u[0..n_in) (Real, Integer, Boolean in turn); *call says which call failed. */
+static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
+    const int32_t nr = c->n_in_real, ni = c->n_in_integer, nb = c->n_in - nr - ni;
+    int st = STATUS_OK;
+    if (nr && (st = set_real(c, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
+    if (ni && (st = set_discrete(c, MK_INTEGER, c->in_vrs + nr, u + nr, ni)) > STATUS_OK)
+        return *call = MK_CALL_SET_INTEGER, st;
+    if (nb && (st = set_discrete(c, MK_BOOLEAN, c->in_vrs + nr + ni, u + nr + ni, nb)) > STATUS_OK)
+        return *call = MK_CALL_SET_BOOLEAN, st;
+    return st;
+}
+
+/* Read the outputs into row[0..n_out) (Real, Integer, Boolean in turn). */
+static int get_outputs(const mk_component *c, double *row, int32_t *call) {
+    const int32_t nr = c->n_out_real, ni = c->n_out_integer, nb = c->n_out - nr - ni;
+    int st = STATUS_OK;
+    if (nr && (st = get_real(c, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
+    if (ni && (st = get_discrete(c, MK_INTEGER, c->out_vrs + nr, row + nr, ni)) > STATUS_OK)
+        return *call = MK_CALL_GET_INTEGER, st;
+    if (nb && (st = get_discrete(c, MK_BOOLEAN, c->out_vrs + nr + ni, row + nr + ni, nb)) > STATUS_OK)
+        return *call = MK_CALL_GET_BOOLEAN, st;
+    return st;
+}
+
+/* The input derivatives of the Real inputs, derivative block by block (one call when every input
+ * is Real: the blocks are then contiguous). */
+static int set_derivatives(const mk_component *c, const double *u) {
+    const int32_t nr = c->n_in_real, nd = c->n_blocks - c->n_values;
+    const double *d = u + (size_t)c->n_values * c->n_in;
+    if (nr == c->n_in)
+        return ((fmi2_set_derivatives *)c->set_derivatives)(c->instance, c->derivative_vrs, (size_t)c->n_derivatives,
+                                                            c->derivative_orders, d);
+    for (int32_t b = 0; b < nd; b++) {
+        int st = ((fmi2_set_derivatives *)c->set_derivatives)(
+            c->instance, c->derivative_vrs + (size_t)b * nr, (size_t)nr, c->derivative_orders + (size_t)b * nr,
+            d + (size_t)b * c->n_in);
+        if (st > STATUS_OK) return st;
+    }
+    return STATUS_OK;
 }
 
 /* doStep. *terminate: 1 when an FMI 3 FMU completed the step and asks to end the simulation,
@@ -396,11 +472,9 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         double t = point_time(c, j);
         int terminate = 0, st;
         int64_t t0 = now_ns();
-        if (n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
-        if (c->n_derivatives &&
-            (st = ((fmi2_set_derivatives *)c->set_derivatives)(c->instance, c->derivative_vrs,
-                                                                (size_t)c->n_derivatives, c->derivative_orders,
-                                                                u + (size_t)c->n_values * n_in)) > STATUS_OK)
+        int32_t call = 0;
+        if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
         if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
@@ -408,11 +482,11 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             request_stop(k, ci, j - 1, n);
             return MK_STOPPED;
         }
-        if (c->feedthrough && (st = set_real(c, u + n_in)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, j);
+        if (c->feedthrough && (st = set_inputs(c, u + n_in, &call)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
-        if (c->n_out && c->reads[m] && (st = get_real(c, row)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_REAL, st, j);
+        if (c->n_out && c->reads[m] && (st = get_outputs(c, row, &call)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, call, st, j);
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
@@ -505,8 +579,9 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
         u[c->stimuli[s].slot] = stimulus_value(&c->stimuli[s], point_time(c, 0));
     int st;
     int64_t t0 = now_ns();
-    if (c->n_in && (st = set_real(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, st, 0);
-    if (c->n_out && (st = get_real(c, c->hist)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_REAL, st, 0);
+    int32_t call = 0;
+    if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    if (c->n_out && (st = get_outputs(c, c->hist, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     return MK_DONE;
 }

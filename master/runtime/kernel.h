@@ -34,6 +34,7 @@ enum {
 enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
+    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -93,28 +94,33 @@ typedef struct {
     /* FMI: version 2 or 3, the instance and the functions the loop calls */
     int32_t fmi;
     void *instance;
-    mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean;
+    mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean, set_integer, set_boolean;
     mk_function get_state, set_state, free_state, get_boolean_status;
     /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
     int64_t num0, dnum, den;
     double h;
     int32_t ratio;
-    /* inputs: u[m][block][i], blocks = n_values values (step start, step end) then derivatives */
+    /* inputs: u[m][block][i], blocks = n_values values (step start, step end) then derivatives;
+     * the first n_in_real are Real (FMI 3 Float64), the next n_in_integer Integer (Int32, FMI 2
+     * Enumeration), the rest Boolean: discrete ones travel as exact doubles, held (order 0) */
     int32_t n_in;
+    int32_t n_in_real, n_in_integer;
     const uint32_t *in_vrs;
     int32_t n_blocks;
     int32_t n_values;
     int32_t feedthrough; /* set the step-end inputs after doStep (outputs depend on inputs) */
-    int32_t n_derivatives;            /* entries of the derivative call: n_in * (n_blocks - n_values) */
-    const uint32_t *derivative_vrs;   /* [n_derivatives] */
+    int32_t n_derivatives;            /* n_in_real * (n_blocks - n_values): Real inputs only */
+    const uint32_t *derivative_vrs;   /* [n_derivatives]: [derivative block][Real input] */
     const int32_t *derivative_orders; /* [n_derivatives] */
     double *u;
     int32_t n_links;
     const mk_link *links;
     int32_t n_stimuli;
     const mk_stimulus *stimuli;
-    /* outputs: history ring [cap][n_out]; read after step m only where reads[m] */
+    /* outputs: history ring [cap][n_out]; read after step m only where reads[m]; Real first, then
+     * n_out_integer Integer, then Boolean (as for the inputs) */
     int32_t n_out;
+    int32_t n_out_real, n_out_integer;
     const uint32_t *out_vrs;
     double *hist;
     double *hist_previous; /* start-up: the previous sweep's samples, [cap][n_out] */

@@ -37,6 +37,8 @@ CALLS = (
     "free_state",
     "get_integer",
     "get_boolean",
+    "set_integer",
+    "set_boolean",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 LATE_BINS = 10000
@@ -108,6 +110,8 @@ class Component(C.Structure):
         ("set_derivatives", _p),
         ("get_integer", _p),
         ("get_boolean", _p),
+        ("set_integer", _p),
+        ("set_boolean", _p),
         ("get_state", _p),
         ("set_state", _p),
         ("free_state", _p),
@@ -118,6 +122,8 @@ class Component(C.Structure):
         ("h", _f64),
         ("ratio", _i32),
         ("n_in", _i32),
+        ("n_in_real", _i32),
+        ("n_in_integer", _i32),
         ("in_vrs", C.POINTER(_u32)),
         ("n_blocks", _i32),
         ("n_values", _i32),
@@ -131,6 +137,8 @@ class Component(C.Structure):
         ("n_stimuli", _i32),
         ("stimuli", C.POINTER(Stimulus)),
         ("n_out", _i32),
+        ("n_out_real", _i32),
+        ("n_out_integer", _i32),
         ("out_vrs", C.POINTER(_u32)),
         ("hist", C.POINTER(_f64)),
         ("hist_previous", C.POINTER(_f64)),

@@ -25,7 +25,7 @@ from master.backends.component import (
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.schedule import Clock, Link, Plan, PlanComponent
+from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
@@ -40,6 +40,8 @@ FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used wit
     "set_derivatives": ("fmi2SetRealInputDerivatives", None),
     "get_integer": ("fmi2GetInteger", "fmi3GetInt32"),
     "get_boolean": ("fmi2GetBoolean", "fmi3GetBoolean"),
+    "set_integer": ("fmi2SetInteger", "fmi3SetInt32"),
+    "set_boolean": ("fmi2SetBoolean", "fmi3SetBoolean"),
     "get_state": ("fmi2GetFMUstate", "fmi3GetFMUState"),
     "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
     "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
@@ -258,11 +260,17 @@ class CompiledPlan:
         c.h = float(pc.step)
         c.ratio = k = pc.ratio
 
-        links = plan.links_into(pc.name)
+        # inputs Real first (links, then stimuli), then Integer, then Boolean: kernel.h
+        links = sorted(plan.links_into(pc.name), key=lambda lk: KINDS.index(lk.kind))
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
-        in_names = [i for lk in links for i in lk.inputs] + [s.variable for s in stimuli]
+        real = [i for lk in links if lk.kind == "Real" for i in lk.inputs] + [s.variable for s in stimuli]
+        in_names = real + [i for lk in links if lk.kind != "Real" for i in lk.inputs]
         in_vrs = [fmu.variables[n].vr for n in in_names]
+        c.n_in_real = len(real)
+        c.n_in_integer = sum(len(lk.inputs) for lk in links if lk.kind == "Integer")
         out = self.outs[pc.name]
+        out_kinds = [value_kind(fmu.variables[o].type) for o in out]
+        c.n_out_real, c.n_out_integer = out_kinds.count("Real"), out_kinds.count("Integer")
         c.feedthrough = int(bool(in_names) and any(o in fmu.feedthrough for o in out))
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
@@ -271,15 +279,15 @@ class CompiledPlan:
         n_deriv_blocks = len(blocks) - nv
         if n_deriv_blocks and c.set_derivatives is None:
             raise FmuError(f"{pc.name}: inputs as polynomials need fmi2SetRealInputDerivatives")
-        c.n_derivatives = n_deriv_blocks * len(in_names)
-        c.derivative_vrs = _ptr(self._array(in_vrs * n_deriv_blocks, np.uint32), C.c_uint32)
-        orders = [d for _, d in blocks[nv:] for _ in in_names]
+        c.n_derivatives = n_deriv_blocks * c.n_in_real  # discrete inputs are held: no derivatives
+        c.derivative_vrs = _ptr(self._array(in_vrs[: c.n_in_real] * n_deriv_blocks, np.uint32), C.c_uint32)
+        orders = [d for _, d in blocks[nv:] for _ in range(c.n_in_real)]
         c.derivative_orders = _ptr(self._array(orders, np.int32), C.c_int32)
         c.u = _ptr(self._array(np.zeros((k, len(blocks), len(in_names))), np.float64), C.c_double)
 
         c_links = (native.Link * max(len(links), 1))()
-        slot = 0
         for i, lk in enumerate(links):
+            slot = in_names.index(lk.inputs[0])
             src_out = self.outs[lk.source]
             n_plain, n_relaxed, offsets, w, zero = link_tables(lk, blocks)
             step_s = float(plan.component(lk.source).step)
@@ -300,13 +308,12 @@ class CompiledPlan:
                 scale=_ptr(self._array(scale, np.float64), C.c_double),
                 **self._estimate(lk),
             )
-            slot += len(lk.inputs)
         c.n_links, c.links = len(links), c_links
         c_stim = (native.Stimulus * max(len(stimuli), 1))()
         for i, s in enumerate(stimuli):
             start = fmu.variables[s.variable].start
             c_stim[i] = native.Stimulus(
-                slot=slot + i,
+                slot=in_names.index(s.variable),
                 kind=0 if s.kind == "step" else 1,
                 n=len(s.times),
                 times=_ptr(self._array([float(t) for t in s.times], np.float64), C.c_double),
@@ -324,7 +331,7 @@ class CompiledPlan:
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
         the source's next macro-step sample, and its rows of the shared statistics, reset."""
-        if lk.source_first:
+        if lk.source_first or lk.kind != "Real":  # discrete signals are held, not predicted
             return {}
         rows = self.memory["estimates"][estimate_rows(self.plan, lk)]
         rows[:] = 0.0

@@ -20,6 +20,19 @@ NUMERIC = {"Float64", "Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "U
 FLOATS = {"Float64", "Float32"}
 
 
+COUPLED = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
+CONNECTABLE = "Real (FMI 3 Float64), Integer (Int32, FMI 2 Enumeration) and Boolean"
+
+
+def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
+    """What a connection of a variable of this type carries: "Real", "Integer" or "Boolean" (the
+    runtime's value kinds; Integer and Boolean are held between communication points), None if
+    it cannot be connected (String, Binary, Float32, integers other than Int32, FMI 3 Enumeration)."""
+    if fmi_type == "Enumeration":
+        return "Integer" if fmi_version.startswith("2") else None
+    return COUPLED.get(fmi_type)
+
+
 def type_class(fmi_type: str) -> str:
     """The FMI 3 name of a variable type ('Real' -> 'Float64')."""
     return _SAME_TYPE.get(fmi_type, fmi_type)

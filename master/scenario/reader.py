@@ -250,6 +250,9 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         if out.kind != inp.kind:
             ctx.at(elem, f"type mismatch: {se}.{sc} is {out.type}, {ee}.{ec} is {inp.type}")
             ok = False
+        elif fmuinfo.coupling_kind(out.type, ctx.comps[se].info.fmi_version) is None:
+            ctx.at(elem, f"{se}.{sc} is {out.type}: connections carry {fmuinfo.CONNECTABLE} signals")
+            ok = False
         elif out.unit and inp.unit and out.unit != inp.unit:
             ctx.at(
                 elem,
