@@ -190,6 +190,12 @@ def _fmi2_log(env, instance, status, category, message) -> None:
     fmu = _LOGGING.get(env or 0)
     if fmu is not None:
         fmu.last_log = message.decode("utf-8", "replace") if message else ""
+        return
+    # Not ours: fmpy's proxy holds one logger per process, now this one, so an FMU that fmpy
+    # instantiated with its default callbacks logs here too: print as fmpy's own logger does
+    from fmpy.fmi1 import printLogMessage
+
+    printLogMessage(env, instance, status, category, message or b"")
 
 
 def _fmi2_logger():

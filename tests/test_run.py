@@ -13,6 +13,7 @@ from fmpy.util import read_csv
 import master.api as api
 from master.backends.component import SimulationError
 from master.fmu import Fmu, FmuError
+from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario, Stimulus
 
 LAG = '''
@@ -192,3 +193,16 @@ def test_fmi3_fmu_runs_through_the_same_interface(tmp_path):
     expected = [1 - (1 - h / 0.5) ** (2 * n) for n in range(11)]
     np.testing.assert_allclose(d["lag.y"], expected, rtol=1e-13, atol=1e-15)
     assert list(d["lag.steps"]) == [2.0 * n for n in range(11)]
+
+
+def test_fmpy_default_logging_still_prints_after_a_run_in_this_process(capsys):
+    """fmpy's message proxy keeps one logger per process: after a master run it is the master's,
+    which must print the messages of FMUs that fmpy instantiated with its default callbacks."""
+    import fmpy
+
+    from master.evidence.oscillator import scene
+
+    api.run(scene(stop_time=Fraction(1, 10)), backend="in-process")
+    with pytest.raises(Exception, match="fmi2DoStep"):
+        fmpy.simulate_fmu(str(fmu_path("crashtest")), stop_time=0.1, start_values={"mode": 4})
+    assert "crashtest: error requested at t = 0" in capsys.readouterr().out
