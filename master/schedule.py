@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from master.fmu import VariableInfo
-from master.scenario.fmuinfo import CONNECTABLE, coupling_kind
+from master.scenario.fmuinfo import CONNECTABLE, STIMULATED, coupling_kind
 from master.scenario.model import Scenario, Stimulus
 
 MAX_ORDER = 3
@@ -330,10 +330,16 @@ def build_plan(
         if s.component not in variables or s.variable not in variables[s.component]:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: no such variable")
         v = variables[s.component][s.variable]
-        if v.causality != "input" or v.type != "Real":
+        carried = coupling_kind(v.fmi_type or v.type, capabilities.get(s.component, Capability()).fmi_version)
+        if v.causality != "input" or carried not in ("Real", "Integer"):
             raise _err(
                 sc,
-                f"stimulus on {s.component}.{s.variable}: a Real input is needed, got {v.causality} {v.type}",
+                f"stimulus on {s.component}.{s.variable}: a {STIMULATED} input is needed, "
+                f"got {v.causality} {v.fmi_type or v.type}",
+            )
+        if carried == "Integer" and s.kind != "step":
+            raise _err(
+                sc, f"stimulus on {s.component}.{s.variable}: an Integer input takes a step, not a table"
             )
         if (s.component, s.variable) in driven:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: the input is already driven")

@@ -99,3 +99,23 @@ def test_what_a_connection_carries_per_fmi_type():
     assert [
         coupling_kind(t, "3.0") for t in ("Float64", "Int32", "Boolean", "Enumeration", "Float32", "Int64")
     ] == ["Real", "Integer", "Boolean", None, None, None]
+
+
+def test_a_step_stimulus_drives_an_integer_input():
+    # b grows at (n_in + 1) rate with on_in held true; n_in steps from 0 to 3 at t = 0.5 s: Euler
+    # integrates the piecewise constant slope exactly
+    from master.scenario.model import Stimulus
+
+    sc = ring()
+    b = Component("b", sc.components[1].fmu_path, {"solver": 1, "rate": 0.5, "on_in": True}, 2, 2)
+    step = Stimulus("b", "n_in", "step", (0.5,), (3.0,))
+    record = (("b", "x"), ("b", "n_in"))
+    scene = Scenario(sc.path, sc.name, (b,), (), Fraction(0), Fraction(2), H, record=record, stimuli=(step,))
+    for backend in ("serial", "in-process"):
+        d = api.run(scene, backend=backend).data
+        t = d["time"]
+        assert np.allclose(d["b.x"], np.where(t <= 0.5, 0.5 * t, 0.25 + 2.0 * (t - 0.5)), rtol=0, atol=1e-13)
+        assert set(np.unique(d["b.n_in"])) == {0.0, 3.0}
+    table = Stimulus("b", "n_in", "table", (0.0, 1.0), (0.0, 3.0))
+    with pytest.raises(api.PlanError, match="an Integer input takes a step"):
+        api.plan(Scenario(sc.path, sc.name, (b,), (), Fraction(0), Fraction(2), H, stimuli=(table,)))

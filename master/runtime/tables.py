@@ -261,13 +261,15 @@ class CompiledPlan:
         c.ratio = k = pc.ratio
 
         # inputs Real first (links, then stimuli), then Integer, then Boolean: kernel.h
-        links = sorted(plan.links_into(pc.name), key=lambda lk: KINDS.index(lk.kind))
+        links = plan.links_into(pc.name)
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
-        real = [i for lk in links if lk.kind == "Real" for i in lk.inputs] + [s.variable for s in stimuli]
-        in_names = real + [i for lk in links if lk.kind != "Real" for i in lk.inputs]
+        in_names = []
+        for kind in KINDS:
+            in_names += [i for lk in links if lk.kind == kind for i in lk.inputs]
+            in_names += [s.variable for s in stimuli if value_kind(fmu.variables[s.variable].type) == kind]
+        in_kinds = [value_kind(fmu.variables[n].type) for n in in_names]
         in_vrs = [fmu.variables[n].vr for n in in_names]
-        c.n_in_real = len(real)
-        c.n_in_integer = sum(len(lk.inputs) for lk in links if lk.kind == "Integer")
+        c.n_in_real, c.n_in_integer = in_kinds.count("Real"), in_kinds.count("Integer")
         out = self.outs[pc.name]
         out_kinds = [value_kind(fmu.variables[o].type) for o in out]
         c.n_out_real, c.n_out_integer = out_kinds.count("Real"), out_kinds.count("Integer")

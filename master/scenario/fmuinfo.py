@@ -22,6 +22,7 @@ FLOATS = {"Float64", "Float32"}
 
 COUPLED = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
 CONNECTABLE = "Real (FMI 3 Float64), Integer (Int32, FMI 2 Enumeration) and Boolean"
+STIMULATED = "Real (FMI 3 Float64) and Integer (Int32, FMI 2 Enumeration)"
 
 
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:

@@ -17,7 +17,7 @@ from lxml import etree
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import FLOATS, NUMERIC
+from .fmuinfo import FLOATS, STIMULATED, coupling_kind
 from .model import Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -336,8 +336,14 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
                 " stimuli are for undriven inputs",
             )
             ok = False
-        if var.kind not in NUMERIC:
-            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: stimuli drive Real and Integer inputs")
+        carried = coupling_kind(var.type, ctx.comps[key[0]].info.fmi_version)
+        if carried not in ("Real", "Integer"):
+            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: stimuli drive {STIMULATED} inputs")
+            ok = False
+        elif carried == "Integer" and kind != "step":
+            ctx.at(
+                se, f"{key[0]}.{key[1]} is {var.type}: an Integer input takes a step stimulus, not a table"
+            )
             ok = False
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
