@@ -353,22 +353,32 @@ def build_plan(
         driven.add((s.component, s.variable))
 
     # recording
-    record = tuple(sc.record)
-    if not record:
-        record = tuple(
-            (c.name, v.name)
-            for c in sc.components
-            for v in variables[c.name].values()
-            if v.causality == "output"
+    def recordable(comp: str, v: VariableInfo) -> bool:
+        return (
+            coupling_kind(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version) is not None
         )
+
+    record = tuple(sc.record)
+    if not record:  # every output the runtime can record; a note names the others
+        outputs = [
+            (c.name, v) for c in sc.components for v in variables[c.name].values() if v.causality == "output"
+        ]
+        record = tuple((c, v.name) for c, v in outputs if recordable(c, v))
+        skipped = [f"{c}.{v.name} ({v.fmi_type or v.type})" for c, v in outputs if not recordable(c, v)]
+        if skipped:
+            notes.append(f"not recorded: {', '.join(skipped)}; the runtime records {CONNECTABLE} values")
     for comp, var in record:
         if comp not in variables:
             raise _err(sc, f"record {comp}.{var}: no component {comp!r}")
         v = variables[comp].get(var)
         if v is None:
             raise _err(sc, f"record {comp}.{var}: component {comp} has no variable {var!r}")
-        if v.type not in ("Real", "Integer", "Enumeration", "Boolean"):
-            raise _err(sc, f"record {comp}.{var}: variables of type {v.type} cannot be recorded")
+        if not recordable(comp, v):
+            raise _err(
+                sc,
+                f"record {comp}.{var}: it is {v.fmi_type or v.type}; "
+                f"the runtime records {CONNECTABLE} values",
+            )
     every = 1
     if sc.record_interval is not None:
         ri = Fraction(sc.record_interval)

@@ -206,3 +206,31 @@ def test_fmpy_default_logging_still_prints_after_a_run_in_this_process(capsys):
     with pytest.raises(Exception, match="fmi2DoStep"):
         fmpy.simulate_fmu(str(fmu_path("crashtest")), stop_time=0.1, start_values={"mode": 4})
     assert "crashtest: error requested at t = 0" in capsys.readouterr().out
+
+
+LABELLED = (
+    LAG.replace("class Lag", "class Labelled")
+    .replace(
+        "from pythonfmu import Fmi2Causality, Fmi2Slave, Real",
+        "from pythonfmu import Fmi2Causality, Fmi2Slave, Real, String",
+    )
+    .replace(
+        '        self.register_variable(Real("y", causality=Fmi2Causality.output))',
+        '        self.register_variable(Real("y", causality=Fmi2Causality.output))\n'
+        '        self.label = "lag"\n'
+        "        self.register_variable(\n"
+        '            String("label", causality=Fmi2Causality.output, variability="discrete")\n'
+        "        )",
+    )
+)
+
+
+def test_a_string_output_is_left_out_of_the_default_record_with_a_note(tmp_path):
+    fmu = build_pythonfmu("Labelled", LABELLED, tmp_path)
+    sc = scene([Component("c", fmu)])
+    plan = api.plan(sc)
+    assert plan.record == (("c", "y"),)
+    assert any("not recorded: c.label (String)" in n for n in plan.notes)
+    assert api.run(sc, backend="serial").data.dtype.names == ("time", "c.y")
+    with pytest.raises(api.PlanError, match="record c.label: it is String"):
+        api.plan(scene([Component("c", fmu)], record=(("c", "label"),)))

@@ -17,7 +17,7 @@ from lxml import etree
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import FLOATS, STIMULATED, coupling_kind
+from .fmuinfo import CONNECTABLE, FLOATS, STIMULATED, coupling_kind
 from .model import Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -306,8 +306,11 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     chosen = []
     for ve in rec.findall(tag(NS_MM, "Variable")):
         key = (ve.get("component", ""), ve.get("name", ""))
-        if ctx.variable(*key, ve) is not None:
-            if key in chosen:
+        var = ctx.variable(*key, ve)
+        if var is not None:
+            if coupling_kind(var.type, ctx.comps[key[0]].info.fmi_version) is None:
+                ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {CONNECTABLE} values")
+            elif key in chosen:
                 ctx.at(ve, "recorded twice")
             else:
                 chosen.append(key)
