@@ -130,3 +130,29 @@ def test_largest_stable_step_does_not_jump_over_the_window_below_a_wider_one():
     assert linear.is_stable(scheme, 1.1)
     h = largest_stable_step(scheme, 0.5, 1.2)
     assert h == pytest.approx(0.916, abs=0.002)
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 3])
+@pytest.mark.parametrize("solvers", [(4, 4), (3, 1)])
+def test_linear_model_reproduces_the_runtime_with_interpolated_inputs_at_ratio_4(order, solvers):
+    """mass2 interpolates its inputs at step ratio 4: the runtime gives it one doStep per macro
+    step with its inputs as polynomials and four solver steps inside; the model, one component
+    with substeps 4 and polynomial inputs, agrees to round-off. `linearize` models it so too."""
+    from fractions import Fraction
+
+    from master.api import run
+    from master.evidence.oscillator import scene
+    from master.evidence.stability import linearize
+
+    h = Fraction(1, 20)
+    sc = scene(split="force", macro_step=h, order=order, solvers=solvers, step_ratios=(1, 4),
+               interpolate=(False, True), substeps=1, stop_time=Fraction(5))  # fmt: skip
+    data = run(sc).data
+    lin = split_scheme(
+        order=order, solvers=solvers, substeps=(1, 4), inputs=("hold", "polynomial"), split="force"
+    )
+    z = linear.simulate(lin, {"mass1": SET_A_Z0[:2], "mass2": SET_A_Z0[2:]}, float(h), 100)
+    for i, name in enumerate(("mass1.x", "mass1.v", "mass2.x", "mass2.v")):
+        assert np.max(np.abs(data[name] - z[:, i])) < 1e-13
+    mass2 = linearize(sc).components[1]
+    assert (mass2.step_ratio, mass2.substeps, mass2.input_mode) == (1, 4, "polynomial")

@@ -41,6 +41,7 @@ class LinearComponent:
     step_ratio: int = 1
     substeps: int = 1
     order: int | None = None  # extrapolation order of its inputs (None: the scheme's)
+    input_mode: str | None = None  # "hold" or "polynomial" (None: the scheme's `inputs`)
 
 
 @dataclass(frozen=True)
@@ -157,7 +158,7 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
         for j in range(n * kc, n * kc + kc):
             u0 = inputs(j, j)
             for m in range(c.substeps):
-                if scheme.inputs == "hold":
+                if (c.input_mode or scheme.inputs) == "hold":
                     u_of_t = _constant(u0)
                 else:
                     u_of_t = _polynomial(inputs, j, (m / c.substeps), 1.0 / c.substeps)

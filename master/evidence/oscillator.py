@@ -61,7 +61,7 @@ def split_scheme(
     solvers: tuple[int, int] = (4, 4),
     step_ratios: tuple[int, int] = (1, 1),
     substeps: tuple[int, int] = (1, 1),
-    inputs: str = "hold",
+    inputs: str | tuple[str, str] = "hold",
     split: str = "displacement",
 ):
     """The benchmark's co-simulation split as a linear scheme (see master.evidence.linear).
@@ -74,11 +74,13 @@ def split_scheme(
     """
     from master.evidence.linear import LinearComponent, LinearScheme
 
+    modes = (inputs, inputs) if isinstance(inputs, str) else tuple(inputs)
+
     def mass(name, m, c, d, cc, dc, inputs, outputs, i):
         a = np.array([[0.0, 1.0], [-(c + cc) / m, -(d + dc) / m]])
         b = np.array([[0.0, 0.0], [cc / m, dc / m]])
         return dict(name=name, a=a, b=b, inputs=inputs, outputs=outputs, solver=solvers[i],
-                    step_ratio=step_ratios[i], substeps=substeps[i])  # fmt: skip
+                    step_ratio=step_ratios[i], substeps=substeps[i], input_mode=modes[i])  # fmt: skip
 
     if split == "displacement":
         io = (("x_in", "v_in"), ("x", "v"))
@@ -94,7 +96,7 @@ def split_scheme(
             ("mass2", "x", "mass1", "x_in"),
             ("mass2", "v", "mass1", "v_in"),
         )
-        return LinearScheme((m1, m2), conns, order=order, inputs=inputs)
+        return LinearScheme((m1, m2), conns, order=order, inputs=modes[0])
     if split != "force":
         raise ValueError(f"unknown split {split!r}: 'displacement' or 'force'")
     m1 = LinearComponent(
@@ -111,7 +113,7 @@ def split_scheme(
         **mass("mass2", p.m2, p.c2, p.d2, p.cc, p.dc, ("x_in", "v_in"), ("F",), 1),
     )
     conns = (("mass1", "x", "mass2", "x_in"), ("mass1", "v", "mass2", "v_in"), ("mass2", "F", "mass1", "F"))
-    return LinearScheme((m1, m2), conns, order=order, inputs=inputs)
+    return LinearScheme((m1, m2), conns, order=order, inputs=modes[0])
 
 
 def scene(

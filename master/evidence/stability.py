@@ -87,10 +87,15 @@ def _jacobians(f, x0: np.ndarray, u0: np.ndarray, rel: float = 1e-6):
 def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> LinearScheme:
     """The scene linearised about its monolithic solution at time t (s), as a LinearScheme.
 
-    Solvers and step ratios come from the scene's components (parameter "solver", default
-    from the FMU's start value via the instance); order: the extrapolation order (default:
-    the largest of the scene's components).
+    Each component is modelled as the runtime steps it (master.api.plan): its effective step
+    ratio, its inputs held or as polynomials (an FMU that interpolates its inputs: one doStep per
+    macro step), its solver (parameter "solver") and its solver steps per communication step
+    (parameter "internal_step"; 0: one). order: the extrapolation order (default: the largest
+    of the scene's components).
     """
+    from master.api import plan as make_plan
+
+    schedule = make_plan(scenario)
     scene = _Scene(scenario)
     try:
         x_all = state_at(scene, scenario, t)
@@ -109,8 +114,13 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
                 m.fmu.setReal([m.vr[i] for i in ins], list(map(float, u0)))
             solver = int(comp.parameters.get("solver", m.fmu.getInteger([m.vr["solver"]])[0]))
             k_in = comp.extrapolation_order if order is None else order
+            pc = schedule.component(comp.name)
+            internal = float(comp.parameters.get("internal_step", m.fmu.getReal([m.vr["internal_step"]])[0]))
+            substeps = max(1, round(float(pc.step) / internal)) if internal > 0 else 1
+            mode = "polynomial" if pc.interpolate_inputs else "hold"
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
-                                         step_ratio=comp.step_ratio, order=k_in))  # fmt: skip
+                                         step_ratio=pc.ratio, substeps=substeps, order=k_in,
+                                         input_mode=mode))  # fmt: skip
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
