@@ -7,7 +7,9 @@ multistep history carries on across communication steps).  The coupling follows 
 communication steps of H / r per macro step and samples its outputs after each; a consumer's
 input is the polynomial of order k through the source's last samples up to t_n, evaluated at
 the start of each communication step and held over it ("hold"), or at every solver stage time
-("polynomial"); feedthrough outputs are read with the inputs evaluated at the step's end.
+("polynomial"); feedthrough outputs are read with the inputs evaluated at the step's end,
+and read again at the macro step's end with the sources' own samples there (the runtime's
+resampling: no output lags its time label).
 
 The scheme is linear in its extended state z = (states, solver histories, coupling history),
 so one macro step is z_(n+1) = G(H) z_n; the co-simulation is stable iff rho(G) < 1.
