@@ -77,9 +77,11 @@ def predicted_limits():
     ]
 
 
-def test_stability_limit_shrinks_with_extrapolation_order(predicted_limits):
-    # coupling-limited: each order roughly halves the largest stable macro step
-    assert all(b < 0.7 * a for a, b in zip(predicted_limits, predicted_limits[1:], strict=False))
+def test_stability_limit_barely_depends_on_the_extrapolation_order(predicted_limits):
+    # the coupling force is read again at every macro step's end (resampling), so it no longer
+    # lags a step: the order moves the limit by a few per cent (it halved it per order before)
+    assert all(b <= a for a, b in zip(predicted_limits, predicted_limits[1:], strict=False))
+    assert predicted_limits[-1] > 0.95 * predicted_limits[0]
 
 
 @pytest.mark.parametrize("order", [0, 1, 2, 3])
@@ -95,7 +97,7 @@ def test_runtime_stability_limits_match_linear_analysis(order, predicted_limits)
 
 
 def test_measured_growth_per_macro_step_is_the_spectral_radius(predicted_limits):
-    h = Fraction(1.25 * predicted_limits[2]).limit_denominator(1000)
+    h = Fraction(1.05 * predicted_limits[2]).limit_denominator(1000)  # rho 1.046: 300 steps to diverge
     rho = spectral_radius(split_scheme(SET_A, order=2, **ORDER_TREND), float(h))
     with pytest.raises(SimulationError) as err:
         run(scene(order=2, macro_step=h, stop_time=400 * h, **ORDER_TREND))

@@ -37,8 +37,8 @@ def error(sc) -> float:
     return float(np.max(np.abs(d["mass1.x"] - exact[:, 0])))
 
 
-def slope(errs) -> float:
-    return float(np.polyfit(np.log([float(h) for h in STEPS]), np.log(errs), 1)[0])
+def slope(errs, steps=STEPS) -> float:
+    return float(np.polyfit(np.log([float(h) for h in steps]), np.log(errs), 1)[0])
 
 
 def test_reference_value_at_10s():
@@ -56,11 +56,14 @@ def test_jacobi_error_falls_with_order_plus_one(order):
 
 @pytest.mark.parametrize("k", [1, 2, 5, 10])
 def test_multirate_converges(k):
-    """mass2 steps k times per macro step with held inputs; mass1 gets the polynomials."""
-    errs = [error(oscillator(h, 1, ratios=(1, k), interpolate=(True, False))) for h in STEPS]
-    print(f"multirate k = {k}: errors {errs}, slope {slope(errs):.2f}")
+    """mass2 steps k times per macro step with held inputs; mass1 gets the polynomials through
+    its force samples, the macro-step ends' read again with the actual inputs, the inner ones
+    with extrapolated ones: first order, reached from H = 1/20 s on (k = 2: 0.48 from 1/10 s)."""
+    steps = [h / 2 for h in STEPS]
+    errs = [error(oscillator(h, 1, ratios=(1, k), interpolate=(True, False))) for h in steps]
+    print(f"multirate k = {k}: errors {errs}, slope {slope(errs, steps):.2f}")
     assert errs[0] > errs[1] > errs[2]
-    assert slope(errs) > 0.8
+    assert slope(errs, steps) > 0.8
     assert errs[-1] < 5e-3
 
 
@@ -74,5 +77,6 @@ def test_gauss_seidel_beside_jacobi():
 
 
 def test_order_three_at_a_large_step_is_reported_unstable():
+    # linear analysis: order 3 is stable up to H = 0.183 s; rho = 1.24 at 0.25 s
     with pytest.raises(api.SimulationError, match=r"unstable: mass\d\.\w+ at t=.*smaller macro step"):
-        api.run(oscillator(Fraction(1, 10), 3))
+        api.run(oscillator(Fraction(1, 4), 3, stop=Fraction(40)))

@@ -7,7 +7,9 @@ multistep history carries on across communication steps).  The coupling follows 
 communication steps of H / r per macro step and samples its outputs after each; a consumer's
 input is the polynomial of order k through the source's last samples up to t_n, evaluated at
 the start of each communication step and held over it ("hold"), or at every solver stage time
-("polynomial"); feedthrough outputs are read with the inputs evaluated at the step's end.
+("polynomial"); feedthrough outputs are read with the inputs evaluated at the step's end,
+and read again at the macro step's end with the sources' own samples there (the runtime's
+resampling: no output lags its time label).
 
 The scheme is linear in its extended state z = (states, solver histories, coupling history),
 so one macro step is z_(n+1) = G(H) z_n; the co-simulation is stable iff rho(G) < 1.
@@ -168,6 +170,27 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
             write[c.name][j + 1] = c.c @ st.x + (c.d @ u1 if len(u1) else 0.0)
 
 
+def _resample(scheme: LinearScheme, states: dict, hist: dict, n: int) -> None:
+    """After macro step n, as the runtime does (kernel.h: resample): a component with outputs that
+    depend on inputs reads them again with its inputs set to the sources' samples at the macro
+    step's end. Repeated once per component, so that a chain of such outputs settles in any order
+    (the runtime follows it)."""
+    comps = {c.name: c for c in scheme.components}
+    # every component with such outputs and a driven input: where the runtime does not resample,
+    # the step-end inputs were the sources' samples already and this changes nothing
+    again = [c for c in scheme.components
+             if np.any(c.d) and any(_driver(scheme, c.name, i) is not None for i in c.inputs)]  # fmt: skip
+    for _ in range(len(again)):
+        for c in again:
+            u = np.zeros((len(c.inputs), *states[c.name].x.shape[1:]))
+            for q, i in enumerate(c.inputs):
+                d = _driver(scheme, c.name, i)
+                if d is not None:
+                    src = comps[d[0]]
+                    u[q] = hist[src.name][(n + 1) * src.step_ratio][src.outputs.index(d[1])]
+            hist[c.name][(n + 1) * c.step_ratio] = c.c @ states[c.name].x + c.d @ u
+
+
 def _constant(u0: np.ndarray):
     return lambda theta: u0
 
@@ -235,6 +258,7 @@ def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
         ys = z[lay.samples[c.name]].reshape(k + 1, len(c.outputs), *cols)
         hist[c.name] = {n * c.step_ratio - i: ys[i] for i in range(k + 1)}
     _advance(scheme, states, hist, hist, n, big_h)
+    _resample(scheme, states, hist, n)
     out = np.empty_like(z)
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
@@ -412,5 +436,6 @@ def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_st
             previous = {name: dict(h) for name, h in hist.items()}
             states = {name: st.copy() for name, st in saved.items()}
             _advance(scheme, states, previous, hist, n, big_h, relaxed=True)
+        _resample(scheme, states, hist, n)
         rows.append(np.concatenate([states[c.name].x for c in scheme.components]))
     return np.array(rows)

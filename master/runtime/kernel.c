@@ -140,6 +140,7 @@ void mk_publish(mk_counter *c, int64_t value) { publish(c, value); }
 static void wake_all(mk_shared *s, int32_t n_components, int32_t n_workers) {
     for (int32_t i = 0; i < n_components; i++) {
         futex(&s->published[i], FUTEX_WAKE, INT_MAX, NULL);
+        futex(&s->stepped[i], FUTEX_WAKE, INT_MAX, NULL);
         futex(&s->consumed[i], FUTEX_WAKE, INT_MAX, NULL);
     }
     for (int32_t w = 0; w < n_workers; w++) futex(&s->rows_written[w], FUTEX_WAKE, INT_MAX, NULL);
@@ -179,14 +180,14 @@ static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
 
-static int set_real(const mk_component *c, const double *v, int32_t n) {
-    if (c->fmi == 3) return ((fmi3_set_float64 *)c->set_real)(c->instance, c->in_vrs, (size_t)n, v, (size_t)n);
-    return ((fmi2_set_real *)c->set_real)(c->instance, c->in_vrs, (size_t)n, v);
+static int set_real(const mk_component *c, const uint32_t *vrs, const double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_set_float64 *)c->set_real)(c->instance, vrs, (size_t)n, v, (size_t)n);
+    return ((fmi2_set_real *)c->set_real)(c->instance, vrs, (size_t)n, v);
 }
 
-static int get_real(const mk_component *c, double *v, int32_t n) {
-    if (c->fmi == 3) return ((fmi3_get_float64 *)c->get_real)(c->instance, c->out_vrs, (size_t)n, v, (size_t)n);
-    return ((fmi2_get_real *)c->get_real)(c->instance, c->out_vrs, (size_t)n, v);
+static int get_real(const mk_component *c, const uint32_t *vrs, double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_get_float64 *)c->get_real)(c->instance, vrs, (size_t)n, v, (size_t)n);
+    return ((fmi2_get_real *)c->get_real)(c->instance, vrs, (size_t)n, v);
 }
 
 /* Integer (kind MK_INTEGER) or Boolean values v[0..n) of value references vrs, from doubles. */
@@ -226,7 +227,7 @@ static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
 static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
     const int32_t nr = c->n_in_real, ni = c->n_in_integer, nb = c->n_in - nr - ni;
     int st = STATUS_OK;
-    if (nr && (st = set_real(c, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
+    if (nr && (st = set_real(c, c->in_vrs, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
     if (ni && (st = set_discrete(c, MK_INTEGER, c->in_vrs + nr, u + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_SET_INTEGER, st;
     if (nb && (st = set_discrete(c, MK_BOOLEAN, c->in_vrs + nr + ni, u + nr + ni, nb)) > STATUS_OK)
@@ -238,7 +239,7 @@ static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
 static int get_outputs(const mk_component *c, double *row, int32_t *call) {
     const int32_t nr = c->n_out_real, ni = c->n_out_integer, nb = c->n_out - nr - ni;
     int st = STATUS_OK;
-    if (nr && (st = get_real(c, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
+    if (nr && (st = get_real(c, c->out_vrs, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
     if (ni && (st = get_discrete(c, MK_INTEGER, c->out_vrs + nr, row + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_GET_INTEGER, st;
     if (nb && (st = get_discrete(c, MK_BOOLEAN, c->out_vrs + nr + ni, row + nr + ni, nb)) > STATUS_OK)
@@ -436,7 +437,10 @@ static int32_t check_sample(mk_kernel *k, int32_t ci, const double *row, int64_t
 static int32_t wait_inputs(mk_kernel *k, const mk_component *c, int64_t n) {
     for (int32_t l = 0; l < c->n_links; l++) {
         const mk_link *lk = &c->links[l];
-        if (wait_for(k, &k->shared->published[lk->source], n + lk->ahead)) return aborted(k);
+        /* a source that goes first: its sample at the macro step's end as stepped (resampling it
+         * needs this component's own step) */
+        mk_counter *ready = lk->ahead ? &k->shared->stepped[lk->source] : &k->shared->published[lk->source];
+        if (wait_for(k, ready, n + lk->ahead)) return aborted(k);
     }
     return MK_DONE;
 }
@@ -500,6 +504,48 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     return MK_DONE;
 }
 
+/* Resample component ci after macro step n (kernel.h): its linked inputs set to the sources'
+ * final samples at the macro step's end, its input-dependent Real outputs read again into its
+ * own sample there. */
+static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
+    mk_component *c = &k->components[ci];
+    mk_shared *sh = k->shared;
+    for (int32_t l = 0; sh && l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        mk_counter *ready = c->link_final[l] ? &sh->published[lk->source] : &sh->stepped[lk->source];
+        if (wait_for(k, ready, n + 1)) return aborted(k);
+    }
+    const int64_t j = (n + 1) * c->ratio;
+    int64_t t0 = now_ns();
+    int st = STATUS_OK;
+    int32_t call = MK_CALL_SET_REAL;
+    mark_busy(k, ci);
+    for (int32_t l = 0; st <= STATUS_OK && l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        const mk_component *src = &k->components[lk->source];
+        const double *row = src->hist + (((n + 1) * lk->k_source) % src->cap) * src->n_out;
+        for (int32_t i = 0; i < lk->n_cols; i++) c->scratch[i] = row[lk->columns[i]];
+        const uint32_t *vrs = c->in_vrs + lk->slot0;
+        if (lk->slot0 < c->n_in_real) {
+            st = set_real(c, vrs, c->scratch, lk->n_cols);
+        } else {
+            int32_t kind = lk->slot0 < c->n_in_real + c->n_in_integer ? MK_INTEGER : MK_BOOLEAN;
+            call = kind == MK_INTEGER ? MK_CALL_SET_INTEGER : MK_CALL_SET_BOOLEAN;
+            st = set_discrete(c, kind, vrs, c->scratch, lk->n_cols);
+        }
+    }
+    double *row = c->hist + (j % c->cap) * c->n_out;
+    if (st <= STATUS_OK) {
+        call = MK_CALL_GET_REAL;
+        st = get_real(c, c->resample_vrs, c->scratch, c->n_resample);
+    }
+    mark_idle(k);
+    c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j - 1);
+    for (int32_t i = 0; i < c->n_resample; i++) row[c->resample_cols[i]] = c->scratch[i];
+    return check_sample(k, ci, row, j);
+}
+
 /* Component ci through macro step n: its inputs, then its communication steps, outputs into its
  * history. Relaxed start-up sweeps read the previous sweep's histories, which a barrier has
  * completed. */
@@ -515,7 +561,10 @@ static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
     mark_busy(k, ci);
     int32_t code = communication_steps(k, ci, n);
     mark_idle(k);
-    if (code == MK_DONE && sh) publish(&sh->published[ci], n + 1);
+    if (code == MK_DONE && sh) {
+        publish(&sh->stepped[ci], n + 1);
+        if (!(c->resample && n >= k->startup_steps)) publish(&sh->published[ci], n + 1);
+    }
     return code;
 }
 
@@ -555,6 +604,12 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         }
     }
     if (code == MK_DONE) code = barrier(k); /* the next macro step reads the final sweep's samples */
+    /* resampled in order, a barrier after each: its sources' samples are already published */
+    for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
+        int32_t i = k->resample_order[r];
+        if (k->components[i].local) code = resample(k, i, n);
+        if (code == MK_DONE) code = barrier(k);
+    }
     for (int32_t i = 0; i < saved; i++) {
         mk_component *c = &k->components[i];
         if (!c->local) continue;
@@ -674,9 +729,16 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
             break;
         }
         if (n < k->startup_steps) code = startup_step(k, n);
-        else
+        else {
             for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
                 if (k->components[i].local) code = macro_step(k, i, n, false);
+            for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
+                int32_t i = k->resample_order[r];
+                if (!k->components[i].local) continue;
+                code = resample(k, i, n);
+                if (code == MK_DONE && k->shared) publish(&k->shared->published[i], n + 1);
+            }
+        }
         if (code == MK_DONE && due) code = mk_record_row(k, n);
         if (code != MK_DONE) break;
         if (k->pacing->factor > 0) pace(k, n);

@@ -127,6 +127,17 @@ typedef struct {
     int32_t cap;
     const uint8_t *reads;
     const double *bound; /* |output| beyond this has diverged */
+    /* Resampling: no output lags its time label. After each macro step (a start-up one after its
+     * last sweep) the linked inputs are set again to the sources' final samples at the macro
+     * step's end, and the n_resample Real outputs that depend on inputs are read again into that
+     * sample, before it is published (tables.resampling says which components). */
+    int32_t resample;
+    int32_t n_resample;
+    const uint32_t *resample_vrs;
+    const int32_t *resample_cols; /* their history columns */
+    const uint8_t *link_final;    /* [n_links] 1: wait for the source's resampled sample (the link
+                                     carries outputs the source reads again), 0: its stepped one */
+    double *scratch;              /* [n_in] */
     int32_t n_consumers; /* components reading this history (they hold its ring back) */
     const int32_t *consumers;
     int32_t local;       /* stepped by this process */
@@ -171,7 +182,9 @@ typedef struct {
 /* What several processes share: progress counters per component, the start-up barrier, the
  * results ring's counters, a cancel flag and what each process is doing (for hang detection). */
 typedef struct {
-    mk_counter *published;    /* [n_components]: macro steps completed */
+    mk_counter *published;    /* [n_components]: macro steps completed, samples final */
+    mk_counter *stepped;      /* [n_components]: macro steps stepped (a resampling component's
+                                 samples of outputs that do not depend on inputs are final) */
     mk_counter *consumed;     /* [n_components]: macro steps whose inputs are taken */
     mk_counter *barrier;      /* arrivals at start-up barriers */
     mk_counter *rows_written; /* [n_workers]: rows whose columns each worker has written */
@@ -210,6 +223,8 @@ typedef struct {
     int64_t stopper[2];   /* one process: as mk_shared.stopper */
     mk_pacing *pacing;
     mk_error error;
+    int32_t n_resample_order;
+    const int32_t *resample_order; /* resampling components, sources of input-dependent outputs first */
 } mk_kernel;
 
 /* Sizes of the structures, for the ctypes mirror to check itself against. */

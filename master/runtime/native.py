@@ -54,6 +54,7 @@ class Counter(C.Structure):
 class Shared(C.Structure):
     _fields_ = [
         ("published", C.POINTER(Counter)),
+        ("stepped", C.POINTER(Counter)),
         ("consumed", C.POINTER(Counter)),
         ("barrier", C.POINTER(Counter)),
         ("rows_written", C.POINTER(Counter)),
@@ -145,6 +146,12 @@ class Component(C.Structure):
         ("cap", _i32),
         ("reads", C.POINTER(C.c_uint8)),
         ("bound", C.POINTER(_f64)),
+        ("resample", _i32),
+        ("n_resample", _i32),
+        ("resample_vrs", C.POINTER(_u32)),
+        ("resample_cols", C.POINTER(_i32)),
+        ("link_final", C.POINTER(C.c_uint8)),
+        ("scratch", C.POINTER(_f64)),
         ("n_consumers", _i32),
         ("consumers", C.POINTER(_i32)),
         ("local", _i32),
@@ -209,6 +216,8 @@ class Kernel(C.Structure):
         ("stopper", _i64 * 2),
         ("pacing", C.POINTER(Pacing)),
         ("error", Error),
+        ("n_resample_order", _i32),
+        ("resample_order", C.POINTER(_i32)),
     ]
 
 

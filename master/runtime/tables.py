@@ -124,6 +124,7 @@ def layout(
     counter, pacing = C.sizeof(native.Counter), C.sizeof(native.Pacing)
     nc, nw = len(plan.components), max(n_workers, 1)
     out["published"] = ((nc, counter), "uint8")
+    out["stepped"] = ((nc, counter), "uint8")
     out["consumed"] = ((nc, counter), "uint8")
     out["barrier"] = ((1, counter), "uint8")
     out["rows_written"] = ((nw, counter), "uint8")
@@ -170,6 +171,7 @@ class CompiledPlan:
         self.memory = memory
         self._keep: list[object] = []  # every array and structure the kernel points into
         self.bound: dict[str, np.ndarray] = {}
+        self.resampled, order = resampling(plan, outs)
         comps = (native.Component * len(self.names))()
         for i, pc in enumerate(plan.components):
             comps[i] = self._component(pc, fmus.get(pc.name))
@@ -181,6 +183,8 @@ class CompiledPlan:
         k.startup_steps = plan.startup_steps
         k.startup_sweeps = plan.startup_sweeps
         k.record_every = plan.record_every
+        k.n_resample_order = len(order)
+        k.resample_order = _ptr(self._array([self.names.index(n) for n in order], np.int32), C.c_int32)
         mc = plan.macro_clock
         self._check_clock("the macro clock", mc, plan.n_macro)
         k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
@@ -329,6 +333,14 @@ class CompiledPlan:
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
+        again = self.resampled.get(pc.name, [])
+        c.resample, c.n_resample = int(bool(again)), len(again)
+        c.resample_vrs = _ptr(self._array([fmu.variables[o].vr for o in again], np.uint32), C.c_uint32)
+        c.resample_cols = _ptr(self._array([out.index(o) for o in again], np.int32), C.c_int32)
+        final = [int(any(o in self.resampled.get(lk.source, ()) for o in lk.outputs)) for lk in links]
+        c.link_final = _ptr(self._array(final, np.uint8), C.c_uint8)
+        width = max([len(in_names), len(again)] + [len(lk.inputs) for lk in links])
+        c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
 
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
@@ -476,7 +488,16 @@ def counter(memory: Memory, name: str, i: int = 0) -> native.Counter:
 def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_S) -> native.Shared:
     """kernel.h's mk_shared for `worker` over the counters in `memory` (spin: s before a waiter sleeps)."""
     sh = native.Shared()
-    for name in ("published", "consumed", "barrier", "rows_written", "rows_drained", "cancel", "stop_at"):
+    for name in (
+        "published",
+        "stepped",
+        "consumed",
+        "barrier",
+        "rows_written",
+        "rows_drained",
+        "cancel",
+        "stop_at",
+    ):
         setattr(sh, name, C.cast(memory[name].ctypes.data, C.POINTER(native.Counter)))
     sh.stopper = C.cast(memory["stopper"].ctypes.data, C.POINTER(C.c_int64))
     sh.busy = C.cast(memory["busy"][worker].ctypes.data, C.POINTER(C.c_int64))
@@ -537,6 +558,44 @@ class Memory:
         """Map every page into this process now (a forked worker calls it once too): page faults
         on the stepping path and in the master's drain cost up to a millisecond per run."""
         np.frombuffer(self.buffer, dtype=np.uint8)[::4096].sum()
+
+
+def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[str]], list[str]]:
+    """Which outputs each component reads again after a macro step (kernel.h: resample), and the
+    order of those components (a source of re-read outputs before their consumers): every
+    component driven by a link whose Real outputs read at communication points depend on inputs
+    (the model structure; none declared: all do). Its step-end inputs were extrapolated (a link
+    that is not ahead), a source's sample before that source was resampled, or, in start-up
+    sweeps, the previous sweep's; where they were final already, reading again changes nothing."""
+    from master.fmu import feedthrough_outputs, read_description, variables_of
+
+    through: dict[str, list[str]] = {}
+    for pc in plan.components:
+        if not plan.links_into(pc.name):
+            continue
+        md = read_description(plan.scenario.component(pc.name).fmu_path)
+        depend, variables = feedthrough_outputs(md), variables_of(md)
+        chosen = [o for o in outs[pc.name] if o in depend and value_kind(variables[o].type) == "Real"]
+        if chosen:
+            through[pc.name] = chosen
+
+    again = through
+    order: list[str] = []
+    waiting = dict.fromkeys(again)
+    while waiting:  # Kahn: a component after every resampled source whose resampled outputs it reads
+        ready = [
+            n for n in waiting
+            if not any(lk.source in waiting and lk.source != n and set(lk.outputs) & set(again[lk.source])
+                       for lk in plan.links_into(n))
+        ]  # fmt: skip
+        if not ready:  # an algebraic loop (the scenario layer refuses these): left as it was
+            for n in waiting:
+                again.pop(n)
+            break
+        for n in ready:
+            order.append(n)
+            waiting.pop(n)
+    return again, order
 
 
 def estimate_rows(plan: Plan, lk: Link) -> slice:
