@@ -36,16 +36,13 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
     r.add_argument("scenario", help="scenario file (.ssd or .ssp)")
-    r.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
+    _scene_options(r)
     r.add_argument(
         "-o",
         "--output",
         metavar="CSV",
         help="results file, .csv (default: results/SCENE-DATE-TIME.csv)",
     )
-    r.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
-    r.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="set a parameter (repeatable)")
-    r.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
     g = r.add_mutually_exclusive_group()
     g.add_argument("--serial", dest="backend", action="store_const", const="serial", help="serial backend")
     g.add_argument(
@@ -115,6 +112,14 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _scene_options(p: argparse.ArgumentParser) -> None:
+    """What `run` and `sweep` change of the scenario, alike."""
+    p.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
+    p.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
+    p.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="set a parameter (repeatable)")
+    p.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
+
+
 def _sweep_parser(sub) -> None:
     s = sub.add_parser(
         "sweep",
@@ -149,10 +154,7 @@ def _sweep_parser(sub) -> None:
     s.add_argument("--out", metavar="DIR", help="results folder (default: results/sweep-SCENE)")
     s.add_argument("--series", action="store_true", help="also keep every case's rows in DIR/series.zarr")
     s.add_argument("--plot", metavar="PNG", help="plot each metric against the varied parameters")
-    s.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
-    s.add_argument("--set", action="append", metavar="COMP.VAR=VALUE", help="a fixed parameter (repeatable)")
-    s.add_argument("--record", action="append", metavar="COMP.VAR", help="record this variable (repeatable)")
-    s.add_argument("--output-interval", metavar="DT", help="time between recorded rows in s")
+    _scene_options(s)
     s.add_argument("--step-timeout", type=float, metavar="S", help="a hang, per macro step of a case (s)")
     s.add_argument("--progress", action="store_true", help="show progress even when stderr is not a tty")
     s.add_argument("-q", "--quiet", action="store_true", help="print errors only")
