@@ -290,6 +290,16 @@ class WorkerPool:
         self.last_wait = time.perf_counter() - t0
         return True
 
+    def settle(self, timeout: float) -> None:
+        """After a failure: wait up to `timeout` s for the other workers to answer the last command
+        (they stop by themselves once the failure's macro step is reached); what they answer is
+        not reported."""
+        deadline = time.monotonic() + timeout
+        for i in self.pending:
+            if self.control["state"][i] != FAILED and self.procs[i].exitcode is None:
+                self.done[i].acquire(timeout=max(0.0, deadline - time.monotonic()))
+        self.pending = []
+
     def kill(self, i: int) -> None:
         """SIGKILL worker i (a hung FMU never returns to read the stop command)."""
         self.procs[i].kill()

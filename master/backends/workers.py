@@ -50,6 +50,7 @@ OP_SWEEP, OP_EXIT_INIT, OP_FINISH_INIT, OP_RUN, OP_REALTIME = range(1, 6)
 FIFO_PRIORITY = 50  # SCHED_FIFO priority of paced workers, where permitted
 MCL_CURRENT, MCL_FUTURE = 1, 2
 DEFAULT_STEP_TIMEOUT = 10.0  # s: one component's macro step taking longer than this is a hang
+SETTLE_S = 2.0  # s at most the other workers get to complete the macro steps before a failure
 RING_BYTES = 16 << 20  # the results ring the master drains: at most this size ...
 RING_ROWS = (256, 16384)  # ... and between these many rows
 
@@ -155,7 +156,8 @@ class _Task:
         except SimulationError as e:
             if e.component in self.components:
                 where[0] = self.components.index(e.component)
-            cp.lib.mk_cancel(cp.kernel.shared, len(cp.names), self.n_workers)
+            # the others complete the macro steps before this one (their rows), then stop
+            cp.lib.mk_stop(cp.kernel.shared, cp.kernel.n_now, len(cp.names), self.n_workers)
             raise
 
     def close(self) -> None:
@@ -289,6 +291,7 @@ class WorkerBackend:
         try:
             finished = self.pool.wait(self._supervise, budget)
         except WorkerFailure as e:
+            self._settle(e)
             self.cancel()
             self._drain(recorder)
             raise self._error(e, self.plan.macro_clock.time(self.position), self._span()) from None
@@ -318,7 +321,9 @@ class WorkerBackend:
                 comp = self.names[int(busy[w, 1])]
                 self.pool.kill(w)
                 raise WorkerFailure(
-                    comp, f"hang: its FMU calls took longer than the step timeout of {self.step_timeout:g} s"
+                    comp,
+                    f"hang: its FMU calls took longer than the step timeout of {self.step_timeout:g} s",
+                    worker=w,
                 )
         t_then, rows_then = self._rate
         t = time.perf_counter()
@@ -336,6 +341,19 @@ class WorkerBackend:
             self.lib.mk_publish(counter(self.memory, "rows_drained"), done)
         done = min(counter(self.memory, "published", i).value for i in range(len(self.names)))
         self.position = min(done, counter(self.memory, "stop_at").value)
+
+    def _settle(self, e: WorkerFailure) -> None:
+        """After worker e.worker failed: the others complete the macro steps before the failing one
+        (a worker that raised asked for that itself; for one that died or hung the first macro
+        step its components did not complete is the stop), within the step timeout at most."""
+        assert self.memory is not None and self.pool is not None
+        if not e.raised and e.worker is not None:
+            done = min(
+                counter(self.memory, "published", self.names.index(n)).value for n in self.groups[e.worker]
+            )
+            shared = shared_view(self.memory, 0, len(self.groups))
+            self.lib.mk_stop(C.byref(shared), done, len(self.names), len(self.groups))
+        self.pool.settle(min(self.step_timeout, SETTLE_S))
 
     def cancel(self) -> None:
         """Make every worker stop at its next wait or macro step."""

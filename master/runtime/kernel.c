@@ -153,6 +153,14 @@ void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
     wake_all(s, n_components, n_workers);
 }
 
+void mk_stop(mk_shared *s, int64_t n_stop, int32_t n_components, int32_t n_workers) {
+    int64_t cur = load(s->stop_at);
+    while (n_stop < cur &&
+           !__atomic_compare_exchange_n(&s->stop_at->value, &cur, n_stop, false, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST)) {
+    }
+    wake_all(s, n_components, n_workers);
+}
+
 /* The first macro step no process may begin (an FMU ended the simulation), INT64_MAX if none. */
 static int64_t stop_at(const mk_kernel *k) { return k->shared ? load(k->shared->stop_at) : k->stop_at; }
 

@@ -241,5 +241,8 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
 void mk_publish(mk_counter *c, int64_t value);
 /* Raise the cancel flag and wake every waiter (a supervisor stopping the run). */
 void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers);
+/* No process begins macro step n_stop or a later one (a component failed in it): the others
+ * complete the macro steps before it, and their rows, then stop. Wakes every waiter. */
+void mk_stop(mk_shared *s, int64_t n_stop, int32_t n_components, int32_t n_workers);
 
 #endif

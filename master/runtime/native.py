@@ -282,6 +282,8 @@ def library() -> C.CDLL:
     lib.mk_run.argtypes = [kp, _i64, _i64, _f64, C.POINTER(_i64)]
     lib.mk_cancel.argtypes = [C.POINTER(Shared), _i32, _i32]
     lib.mk_cancel.restype = None
+    lib.mk_stop.argtypes = [C.POINTER(Shared), _i64, _i32, _i32]
+    lib.mk_stop.restype = None
     lib.mk_publish.argtypes = [C.POINTER(Counter), _i64]
     lib.mk_publish.restype = None
     for f in (lib.mk_initial_sweep, lib.mk_record_row, lib.mk_run):
