@@ -78,6 +78,15 @@ class VariableInfo:
     )
 
 
+FMI3_INTEGERS = ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
+
+
+def _fmi3_kind(v: VariableInfo) -> str:
+    """The FMI 3 type whose calls read and write `v` (an Enumeration is an Int64)."""
+    t = v.fmi_type or v.type
+    return "Int64" if t == "Enumeration" else t
+
+
 def _plain_type(t: str) -> str:
     if t in REAL_TYPES:
         return "Real"
@@ -409,40 +418,30 @@ class Fmu:
                 raise FmuError(self.describe(f"cannot set {name} = {value!r}: {e}")) from e
 
     def _set_one(self, v: VariableInfo, value: object) -> None:
+        """One value through the call of the variable's own type (FMI 3: Float32, Int8 ... UInt64,
+        Enumeration as Int64 too)."""
         s = self.slave
-        if v.type == "Real":
+        kind = _fmi3_kind(v) if self.fmi3 else v.type
+        if kind in ("Real", "Float64", "Float32"):
             x = float(value)  # type: ignore[arg-type]
-            s.setFloat64([v.vr], [x]) if self.fmi3 else s.setReal([v.vr], [x])
-        elif v.type in ("Integer", "Enumeration"):
+            (getattr(s, f"set{kind}") if self.fmi3 else s.setReal)([v.vr], [x])
+        elif kind in ("Integer", "Enumeration") or kind in FMI3_INTEGERS:
             if isinstance(value, float) and not value.is_integer():
                 raise FmuError(f"{self.name}.{v.name}: {value!r} is not an integer")
             x = int(value)  # type: ignore[arg-type]
-            s.setInt32([v.vr], [x]) if self.fmi3 else s.setInteger([v.vr], [x])
-        elif v.type == "Boolean":
+            (getattr(s, f"set{kind}") if self.fmi3 else s.setInteger)([v.vr], [x])
+        elif kind == "Boolean":
             if isinstance(value, str):
                 if value.lower() not in ("true", "false", "1", "0"):
                     raise FmuError(f"{self.name}.{v.name}: {value!r} is not a Boolean")
                 value = value.lower() in ("true", "1")
             s.setBoolean([v.vr], [bool(value)])
-        elif v.type == "String":
+        elif kind == "String":
             s.setString([v.vr], [str(value)])
         else:
-            raise FmuError(f"{self.name}.{v.name}: variables of type {v.type} are not supported")
-
-    def get_value(self, name: str) -> float:
-        """Current value of a Real, Integer, Enumeration or Boolean variable as a float."""
-        v = self.variables[name]
-        s = self.slave
-        try:
-            if v.type == "Real":
-                return float((s.getFloat64 if self.fmi3 else s.getReal)([v.vr])[0])
-            if v.type in ("Integer", "Enumeration"):
-                return float((s.getInt32 if self.fmi3 else s.getInteger)([v.vr])[0])
-            if v.type == "Boolean":
-                return float(bool(s.getBoolean([v.vr])[0]))
-        except FMICallException as e:
-            raise FmuError(self.describe(f"cannot get {name}: {e}")) from e
-        raise FmuError(f"{self.name}.{name}: variables of type {v.type} cannot be recorded")
+            raise FmuError(
+                f"{self.name}.{v.name}: variables of type {v.fmi_type or v.type} are not supported"
+            )
 
     # -- life cycle --------------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float) -> None:

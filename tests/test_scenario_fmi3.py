@@ -101,3 +101,23 @@ def test_interpolate_inputs_only_where_the_fmu_can(scene: Path):
     (problem,) = validate(forced)
     assert problem.element == 'mm:Component "lag"'
     assert "Lag3.fmu cannot interpolate inputs" in problem.message
+
+
+def test_fmi3_integer_parameters_of_64_bits_travel_through_their_own_calls(tmp_path: Path):
+    """Int64 and UInt64 parameters are set with fmi3SetInt64 / fmi3SetUInt64 (not SetInt32: the
+    FMU refuses that), every bit of them: y holds their last three decimal digits."""
+    from fractions import Fraction
+
+    import master.api as api
+    from master.scenario.model import Component, Scenario
+
+    subprocess.run(
+        [sys.executable, "-m", "pythonfmu3", "build", "-f", str(SOURCE / "Wide3.py"), "-d", str(tmp_path)],
+        check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    fmu = tmp_path / "Wide3.fmu"
+    big, ubig = -(2**40) - 3, 2**63 + 5
+    sc = Scenario(tmp_path / "wide.ssd", "wide", (Component("w", fmu, {"big": big, "ubig": ubig}),), (),
+                  Fraction(0), Fraction(1, 10), Fraction(1, 100))  # fmt: skip
+    d = api.run(sc, backend="serial").data
+    assert d["w.y"][-1] == float(big % 1000 + ubig % 1000) and d["w.steps"][-1] == 10
