@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from master.fmu import VariableInfo
-from master.scenario.fmuinfo import CONNECTABLE, STIMULATED, coupling_kind
+from master.scenario.fmuinfo import CONNECTABLE, RECORDED, STIMULATED, coupling_kind, recordable
 from master.scenario.model import Scenario, Stimulus
 
 MAX_ORDER = 3
@@ -353,31 +353,28 @@ def build_plan(
         driven.add((s.component, s.variable))
 
     # recording
-    def recordable(comp: str, v: VariableInfo) -> bool:
-        return (
-            coupling_kind(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version) is not None
-        )
+    def can_record(comp: str, v: VariableInfo) -> bool:
+        return recordable(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version)
 
     record = tuple(sc.record)
     if not record:  # every output the runtime can record; a note names the others
         outputs = [
             (c.name, v) for c in sc.components for v in variables[c.name].values() if v.causality == "output"
         ]
-        record = tuple((c, v.name) for c, v in outputs if recordable(c, v))
-        skipped = [f"{c}.{v.name} ({v.fmi_type or v.type})" for c, v in outputs if not recordable(c, v)]
+        record = tuple((c, v.name) for c, v in outputs if can_record(c, v))
+        skipped = [f"{c}.{v.name} ({v.fmi_type or v.type})" for c, v in outputs if not can_record(c, v)]
         if skipped:
-            notes.append(f"not recorded: {', '.join(skipped)}; the runtime records {CONNECTABLE} values")
+            notes.append(f"not recorded: {', '.join(skipped)}; the runtime records {RECORDED}")
     for comp, var in record:
         if comp not in variables:
             raise _err(sc, f"record {comp}.{var}: no component {comp!r}")
         v = variables[comp].get(var)
         if v is None:
             raise _err(sc, f"record {comp}.{var}: component {comp} has no variable {var!r}")
-        if not recordable(comp, v):
+        if not can_record(comp, v):
             raise _err(
                 sc,
-                f"record {comp}.{var}: it is {v.fmi_type or v.type}; "
-                f"the runtime records {CONNECTABLE} values",
+                f"record {comp}.{var}: it is {v.fmi_type or v.type}; the runtime records {RECORDED}",
             )
     every = 1
     if sc.record_interval is not None:

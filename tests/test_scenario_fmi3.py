@@ -105,7 +105,8 @@ def test_interpolate_inputs_only_where_the_fmu_can(scene: Path):
 
 def test_fmi3_integer_parameters_of_64_bits_travel_through_their_own_calls(tmp_path: Path):
     """Int64 and UInt64 parameters are set with fmi3SetInt64 / fmi3SetUInt64 (not SetInt32: the
-    FMU refuses that), every bit of them: y holds their last three decimal digits."""
+    FMU refuses that), every bit of them: y holds their last three decimal digits; Int64 and
+    UInt64 outputs are recorded through fmi3GetInt64 / fmi3GetUInt64 (exact below 2^53)."""
     from fractions import Fraction
 
     import master.api as api
@@ -121,3 +122,5 @@ def test_fmi3_integer_parameters_of_64_bits_travel_through_their_own_calls(tmp_p
                   Fraction(0), Fraction(1, 10), Fraction(1, 100))  # fmt: skip
     d = api.run(sc, backend="serial").data
     assert d["w.y"][-1] == float(big % 1000 + ubig % 1000) and d["w.steps"][-1] == 10
+    assert list(d["w.wide"]) == [0.0] + [float(big + k) for k in range(1, 11)]
+    assert list(d["w.uwide"]) == [0.0] + [float(2**40 + k) for k in range(1, 11)]

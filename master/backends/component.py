@@ -52,10 +52,14 @@ def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
             if lk.source == name and lk.kind == kind:
                 out.extend(o for o in lk.outputs if o not in out)
         if kind == "Real":
-            out.extend(
-                v for c, v in plan.record if c == name and v not in out and variables[v].type == "Real"
-            )
+            out.extend(v for c, v in plan.record if c == name and v not in out and _float64(variables[v]))
     return out
+
+
+def _float64(v) -> bool:
+    """A Real (FMI 2) or Float64 (FMI 3): read with the history's vector calls (a Float32 is read
+    through its own call, as a recorded scalar)."""
+    return v.type == "Real" and v.fmi_type != "Float32"
 
 
 def samples_read(plan: Plan, name: str) -> list[bool]:

@@ -295,21 +295,47 @@ static int do_step(const mk_component *c, double t, bool final, int *terminate) 
     return st;
 }
 
+/* One FMI 3 value of C type T through fmi3Get<type> (kernel.h: get_typed), as a double. */
+#define GET_TYPED(T)                                                                                 \
+    {                                                                                                \
+        T v = 0;                                                                                     \
+        typedef int get_t(void *, const uint32_t *, size_t, T *, size_t);                           \
+        status = ((get_t *)c->get_typed[kind])(c->instance, &vr, 1, &v, 1);                         \
+        *out = (double)v;                                                                            \
+        break;                                                                                       \
+    }
+
 static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
     int status;
-    if (kind == MK_INTEGER) {
+    switch (kind) {
+    case MK_INTEGER: {
         int32_t v = 0;
         status = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, &vr, 1, &v, 1)
                              : ((fmi2_get_integer *)c->get_integer)(c->instance, &vr, 1, &v);
         *out = (double)v;
-    } else if (c->fmi == 3) {
-        bool v = false;
-        status = ((fmi3_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v, 1);
-        *out = v ? 1.0 : 0.0;
-    } else {
-        int32_t v = 0;
-        status = ((fmi2_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v);
-        *out = v ? 1.0 : 0.0;
+        break;
+    }
+    case MK_BOOLEAN:
+        if (c->fmi == 3) {
+            bool v = false;
+            status = ((fmi3_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v, 1);
+            *out = v ? 1.0 : 0.0;
+        } else {
+            int32_t v = 0;
+            status = ((fmi2_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v);
+            *out = v ? 1.0 : 0.0;
+        }
+        break;
+    case MK_FLOAT32: GET_TYPED(float)
+    case MK_INT8: GET_TYPED(int8_t)
+    case MK_UINT8: GET_TYPED(uint8_t)
+    case MK_INT16: GET_TYPED(int16_t)
+    case MK_UINT16: GET_TYPED(uint16_t)
+    case MK_UINT32: GET_TYPED(uint32_t)
+    case MK_INT64: GET_TYPED(int64_t)
+    case MK_UINT64: GET_TYPED(uint64_t)
+    default:
+        status = 4; /* fmi2Fatal / fmi3Fatal: a kind this kernel does not know */
     }
     return status;
 }
@@ -674,8 +700,10 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         mark_idle(k);
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         if (st > STATUS_OK) {
-            fail(k, MK_FMI_ERROR, rec->component, rec->kind == MK_INTEGER ? MK_CALL_GET_INTEGER : MK_CALL_GET_BOOLEAN,
-                 st, (n + 1) * c->ratio);
+            int32_t call = rec->kind == MK_INTEGER   ? MK_CALL_GET_INTEGER
+                           : rec->kind == MK_BOOLEAN ? MK_CALL_GET_BOOLEAN
+                                                     : MK_CALL_GET_TYPED;
+            fail(k, MK_FMI_ERROR, rec->component, call, st, (n + 1) * c->ratio);
             k->error.variable = r;
             return MK_FMI_ERROR;
         }

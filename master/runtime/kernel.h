@@ -15,8 +15,12 @@
 
 #include <stdint.h>
 
-/* Value kinds of a recorded column (room for Integer and Boolean coupling: see mk_record). */
-enum { MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2 };
+/* Value kinds: of coupled signals (Real, Integer = FMI 2 Integer / FMI 3 Int32, Boolean) and of
+ * recorded FMI 3 values read through the call of their own type (an Enumeration is an Int64). */
+enum {
+    MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2, MK_FLOAT32, MK_INT8, MK_UINT8, MK_INT16, MK_UINT16,
+    MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
+};
 
 /* What mk_run returned. */
 enum {
@@ -34,7 +38,7 @@ enum {
 enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
-    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN,
+    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -96,6 +100,7 @@ typedef struct {
     void *instance;
     mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean, set_integer, set_boolean;
     mk_function get_state, set_state, free_state, get_boolean_status;
+    mk_function get_typed[MK_KINDS]; /* FMI 3: fmi3Get<type> of kinds MK_FLOAT32 ... MK_UINT64 */
     /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
     int64_t num0, dnum, den;
     double h;
@@ -151,7 +156,7 @@ typedef struct {
 typedef struct {
     int32_t column; /* in the row (0 is time) */
     int32_t component;
-    int32_t kind;   /* MK_REAL_SAMPLE: history column `index`; MK_INTEGER / MK_BOOLEAN: value reference */
+    int32_t kind;   /* MK_REAL_SAMPLE: history column `index`; any other kind: value reference */
     uint32_t index;
 } mk_record;
 

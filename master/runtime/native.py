@@ -39,8 +39,12 @@ CALLS = (
     "get_boolean",
     "set_integer",
     "set_boolean",
+    "get_typed",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
+# FMI 3 values recorded through the call of their own type: kind by type (an Enumeration: Int64)
+TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
+KINDS = 11
 LATE_BINS = 10000
 
 _p = C.c_void_p
@@ -117,6 +121,7 @@ class Component(C.Structure):
         ("set_state", _p),
         ("free_state", _p),
         ("get_boolean_status", _p),
+        ("get_typed", _p * KINDS),
         ("num0", _i64),
         ("dnum", _i64),
         ("den", _i64),

@@ -101,8 +101,10 @@ def link_tables(
 
 def _function(fmu: Fmu, slot: str) -> int | None:
     name = FMI_FUNCTIONS[slot][1 if fmu.fmi3 else 0]
-    if name is None:
-        return None
+    return None if name is None else _exported(fmu, name)
+
+
+def _exported(fmu: Fmu, name: str) -> int | None:
     try:
         return C.cast(fmu.slave.dll[name], C.c_void_p).value
     except AttributeError:  # not exported: the kernel never calls it unless the plan needs it
@@ -256,6 +258,8 @@ class CompiledPlan:
         c.instance = fmu.slave.component
         for slot in FMI_FUNCTIONS:
             setattr(c, slot, _function(fmu, slot))
+        for name, kind in native.TYPED.items() if fmu.fmi3 else ():
+            c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
         for slot in ("do_step", "set_real", "get_real"):
             if getattr(c, slot) is None:
                 raise FmuError(f"{pc.name}: {fmu.path.name} does not export {FMI_FUNCTIONS[slot][c.fmi - 2]}")
@@ -360,8 +364,13 @@ class CompiledPlan:
         i = self.names.index(comp)
         if var in self.outs[comp]:
             return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var))
-        v = self.fmus[i].variables[var]
-        kind = native.BOOLEAN if v.type == "Boolean" else native.INTEGER
+        fmu = self.fmus[i]
+        v = fmu.variables[var]
+        typed = "Int64" if v.fmi_type == "Enumeration" else v.fmi_type
+        if fmu.fmi3 and typed in native.TYPED:
+            kind = native.TYPED[typed]
+        else:
+            kind = native.BOOLEAN if v.type == "Boolean" else native.INTEGER
         return native.Record(column, i, kind, v.vr)
 
     # -- running --------------------------------------------------------------------------------
@@ -461,8 +470,11 @@ class CompiledPlan:
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
         cause = fmu.call_error(call, e.status)
-        if call in ("get_integer", "get_boolean"):
+        if call in ("get_integer", "get_boolean", "get_typed"):
             _, var = self.plan.record[self.record_index[e.variable]]
+            if call == "get_typed":
+                typed = fmu.variables[var].fmi_type.replace("Enumeration", "Int64")
+                cause = FmuError(fmu.describe(f"fmi3Get{typed} failed with status {e.status}"))
             return SimulationError(f"{cause}: reading {var}", name, math.nan, var)
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)

@@ -34,6 +34,18 @@ def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     return COUPLED.get(fmi_type)
 
 
+RECORDED = "Real, Integer, Boolean and Enumeration values (FMI 3: every numeric type)"
+
+
+def recordable(fmi_type: str, fmi_version: str) -> bool:
+    """Whether the runtime can record a variable of this type: what connections carry, and in
+    FMI 3 every numeric type and Enumeration, each read through its own call."""
+    fmi3 = not fmi_version.startswith("2")
+    return coupling_kind(fmi_type, fmi_version) is not None or (
+        fmi3 and fmi_type in NUMERIC | {"Enumeration"}
+    )
+
+
 def type_class(fmi_type: str) -> str:
     """The FMI 3 name of a variable type ('Real' -> 'Float64')."""
     return _SAME_TYPE.get(fmi_type, fmi_type)

@@ -17,7 +17,7 @@ from lxml import etree
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import CONNECTABLE, FLOATS, STIMULATED, coupling_kind
+from .fmuinfo import FLOATS, RECORDED, STIMULATED, coupling_kind, recordable
 from .model import Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -308,8 +308,8 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
         key = (ve.get("component", ""), ve.get("name", ""))
         var = ctx.variable(*key, ve)
         if var is not None:
-            if coupling_kind(var.type, ctx.comps[key[0]].info.fmi_version) is None:
-                ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {CONNECTABLE} values")
+            if not recordable(var.type, ctx.comps[key[0]].info.fmi_version):
+                ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {RECORDED}")
             elif key in chosen:
                 ctx.at(ve, "recorded twice")
             else:
