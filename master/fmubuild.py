@@ -35,6 +35,9 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_DIR = PACKAGE_DIR.parent  # a source checkout, if fmus/ is beside the package
 
 
+STATES = "states"  # a model table's dependency on every continuous state (model.h)
+
+
 def _cache_dir() -> Path:
     """Where an installed package builds FMUs: $XDG_CACHE_HOME (or ~/.cache)/multirate-master/fmus."""
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
@@ -189,6 +192,8 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
             if v["type"] != "Real" or target is None or target["type"] != "Real":
                 problems.append(f"{label}: derivative_of {v['derivative_of']} is not a Real variable")
         for dep in (v["dependencies"] or "").split():
+            if dep == STATES:
+                continue
             if not dep.isdigit() or int(dep) >= len(variables):
                 problems.append(f"{label}: dependency {dep!r} is not a value reference")
             elif variables[int(dep)]["causality"] != "input" and int(dep) not in state_vrs:
@@ -403,16 +408,18 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
         u = etree.SubElement(parent, "Unknown", index=str(vr + 1))
         deps = variables[vr]["dependencies"]
         if with_dependencies and deps is not None:
-            u.set("dependencies", " ".join(str(int(d) + 1) for d in deps.split()))
+            states = [str(v) for v in state_vrs]
+            listed = [d for dep in deps.split() for d in (states if dep == STATES else [dep])]
+            u.set("dependencies", " ".join(str(int(d) + 1) for d in listed))
 
+    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
+    state_vrs = [real_vr[s] for s in desc["state_slots"]]
     structure = etree.SubElement(root, "ModelStructure")
     outputs = [vr for vr, v in enumerate(variables) if v["causality"] == "output"]
     if outputs:
         out = etree.SubElement(structure, "Outputs")
         for vr in outputs:
             unknown(out, vr, True)
-    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
-    state_vrs = [real_vr[s] for s in desc["state_slots"]]
     derivative_vrs = [real_vr[s] for s in desc["derivative_slots"]]
     if derivative_vrs:
         der = etree.SubElement(structure, "Derivatives")

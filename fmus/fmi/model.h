@@ -56,7 +56,8 @@ typedef struct {
     const char *description;
     int derivative_of;        /* Real state derivatives: value reference of the state; NO_STATE otherwise */
     const char *dependencies; /* outputs, derivatives and calculated initial unknowns: space separated value
-                                 references of the inputs/states they depend on ("" = none, NULL = all) */
+                                 references of the inputs/states they depend on ("" = none, NULL = all,
+                                 "states" = every continuous state) */
 } Variable;
 
 typedef struct Instance Instance;

@@ -96,7 +96,10 @@ enum {
      NO_STATE, NULL}
 #define OUTPUT(name, vr, unit, desc)                                                                     \
     {name, T_REAL, C_OUTPUT, V_CONTINUOUS, I_CALCULATED, RS(vr), 0.0, NULL, -INFINITY, INFINITY, unit,   \
-     desc, NO_STATE, NULL}
+     desc, NO_STATE, "states"} /* a function of the state: it does not change when inputs do */
+#define FORCED(name, vr, unit, desc)                                                                     \
+    {name, T_REAL, C_OUTPUT, V_CONTINUOUS, I_CALCULATED, RS(vr), 0.0, NULL, -INFINITY, INFINITY, unit,   \
+     desc, NO_STATE, NULL} /* depends on the forces or torques as well (an acceleration) */
 #define LOCAL(name, vr, unit, desc)                                                                      \
     {name, T_REAL, C_LOCAL, V_CONTINUOUS, I_CALCULATED, RS(vr), 0.0, NULL, -INFINITY, INFINITY, unit,    \
      desc, NO_STATE, NULL}
@@ -215,9 +218,9 @@ static const Variable VARIABLES[N_VARIABLES] = {
     OUTPUT("body6_vx", VR_B6V, "m/s", "velocity of body 6's cg, global x"),
     OUTPUT("body6_vy", VR_B6V + 1, "m/s", "velocity of body 6's cg, global y"),
     OUTPUT("body6_vz", VR_B6V + 2, "m/s", "velocity of body 6's cg, global z"),
-    OUTPUT("body6_ax", VR_B6A, "m/s2", "acceleration of body 6's cg, global x"),
-    OUTPUT("body6_ay", VR_B6A + 1, "m/s2", "acceleration of body 6's cg, global y"),
-    OUTPUT("body6_az", VR_B6A + 2, "m/s2", "acceleration of body 6's cg, global z"),
+    FORCED("body6_ax", VR_B6A, "m/s2", "acceleration of body 6's cg, global x"),
+    FORCED("body6_ay", VR_B6A + 1, "m/s2", "acceleration of body 6's cg, global y"),
+    FORCED("body6_az", VR_B6A + 2, "m/s2", "acceleration of body 6's cg, global z"),
     OUTPUT("energy", VR_ENERGY, "J", "kinetic plus gravitational potential energy (z = 0 datum)"),
     OUTPUT("constraint_residual", VR_RESIDUAL, NULL, "max |Phi| of the loop closure after Newton (m)"),
     LOCAL("mbar_min_eigenvalue", VR_MBAR_MIN, NULL, "smallest eigenvalue of M_bar (SI, mixed units)"),

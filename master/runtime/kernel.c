@@ -639,9 +639,10 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     }
     if (code == MK_DONE) code = barrier(k); /* the next macro step reads the final sweep's samples */
     /* resampled in order, a barrier after each: its sources' samples are already published */
+    const bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
     for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
         int32_t i = k->resample_order[r];
-        if (k->components[i].local) code = resample(k, i, n);
+        if (k->components[i].local && (due || k->components[i].resample_always)) code = resample(k, i, n);
         if (code == MK_DONE) code = barrier(k);
     }
     for (int32_t i = 0; i < saved; i++) {
@@ -771,7 +772,7 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
             for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
                 int32_t i = k->resample_order[r];
                 if (!k->components[i].local) continue;
-                code = resample(k, i, n);
+                if (due || k->components[i].resample_always) code = resample(k, i, n);
                 if (code == MK_DONE && k->shared) publish(&k->shared->published[i], n + 1);
             }
         }

@@ -137,6 +137,8 @@ typedef struct {
      * step's end, and the n_resample Real outputs that depend on inputs are read again into that
      * sample, before it is published (tables.resampling says which components). */
     int32_t resample;
+    int32_t resample_always; /* 0: the re-read outputs are recorded, never coupled: only at the
+                                macro steps that record a row */
     int32_t n_resample;
     const uint32_t *resample_vrs;
     const int32_t *resample_cols; /* their history columns */

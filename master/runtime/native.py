@@ -152,6 +152,7 @@ class Component(C.Structure):
         ("reads", C.POINTER(C.c_uint8)),
         ("bound", C.POINTER(_f64)),
         ("resample", _i32),
+        ("resample_always", _i32),
         ("n_resample", _i32),
         ("resample_vrs", C.POINTER(_u32)),
         ("resample_cols", C.POINTER(_i32)),

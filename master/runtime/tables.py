@@ -339,6 +339,8 @@ class CompiledPlan:
         c.bound = _ptr(bound, C.c_double)
         again = self.resampled.get(pc.name, [])
         c.resample, c.n_resample = int(bool(again)), len(again)
+        coupled = {o for lk in plan.links if lk.source == pc.name for o in lk.outputs}
+        c.resample_always = int(bool(coupled & set(again)))  # else only where a row is recorded
         c.resample_vrs = _ptr(self._array([fmu.variables[o].vr for o in again], np.uint32), C.c_uint32)
         c.resample_cols = _ptr(self._array([out.index(o) for o in again], np.int32), C.c_int32)
         final = [int(any(o in self.resampled.get(lk.source, ()) for o in lk.outputs)) for lk in links]
