@@ -108,12 +108,27 @@ def read_description(path: Path) -> ModelDescription:
     return _read_description(path.resolve(), st.st_mtime_ns, st.st_size)
 
 
+def parse(path: Path) -> ModelDescription:
+    """An FMU file's modelDescription.xml parsed and checked against the FMI schema by fmpy, once
+    per file version (path, modification time, size) and process: the one reader that
+    read_description, the scenario layer (scenario/fmuinfo.py) and the references share. fmpy's
+    exceptions pass through; callers must not change the object they get."""
+    path = Path(path)
+    st = path.stat()
+    return _parse(path.resolve(), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _parse(path: Path, _mtime_ns: int, _size: int) -> ModelDescription:
+    return read_model_description(str(path), validate=True)
+
+
 @functools.lru_cache(maxsize=64)
 def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescription:
     if not zipfile.is_zipfile(path):
         raise FmuError(f"{path}: not an FMU (not a ZIP archive)")
     try:
-        md = read_model_description(str(path), validate=True)
+        md = parse(path)
     except Exception as e:  # fmpy raises plain Exceptions with the schema error
         raise FmuError(f"{path}: invalid modelDescription.xml: {e}") from e
     if md.fmiVersion not in ("2.0",) and not md.fmiVersion.startswith("3."):

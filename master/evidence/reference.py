@@ -27,13 +27,12 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
-from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Model
 from scipy.integrate import solve_ivp
 
 from master.coupling import stimulus_value
 from master.evidence.errors import Trajectory, as_trajectory, compare
-from master.fmu import feedthrough_outputs, safe_extract
+from master.fmu import feedthrough_outputs, parse, safe_extract
 from master.scenario.model import Scenario, Stimulus
 
 CACHE_DIR = Path(__file__).resolve().parents[2] / "build" / "reference-cache"
@@ -61,7 +60,7 @@ class _Member:
 
 
 def _open(comp_name: str, fmu_path: Path, parameters: dict, start_time: float) -> _Member:
-    md = read_model_description(str(fmu_path))
+    md = parse(fmu_path)
     if md.modelExchange is None:
         raise NoModelExchange(f"{fmu_path}: component {comp_name!r} has no Model Exchange interface")
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -209,7 +208,7 @@ def recorded_variables(scenario: Scenario) -> list[tuple[str, str]]:
         return list(scenario.record)
     names = []
     for comp in scenario.components:
-        md = read_model_description(str(comp.fmu_path))
+        md = parse(comp.fmu_path)
         names += [
             (comp.name, v.name) for v in md.modelVariables if v.causality == "output" and v.type == "Real"
         ]
@@ -286,7 +285,7 @@ def cache_key(scenario: Scenario, settings: dict) -> str:
 
 def has_model_exchange(scenario: Scenario) -> bool:
     """Whether every component's FMU offers a Model Exchange interface."""
-    return all(read_model_description(str(c.fmu_path)).modelExchange is not None for c in scenario.components)
+    return all(parse(c.fmu_path).modelExchange is not None for c in scenario.components)
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,6 @@ import functools
 from dataclasses import dataclass
 from pathlib import Path
 
-import fmpy
-
 PROJECT_SCHEME = "project:"
 
 # FMI 2 names -> their FMI 3 equivalents, so both versions compare alike.
@@ -152,13 +150,15 @@ def read(path: Path) -> FmuInfo:
 
 @functools.lru_cache(maxsize=64)
 def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
+    from master.fmu import parse
+
     from .archive import damaged
 
     why = damaged(path)
     if why:
         raise SourceError(f"{path.name}: {why}")
     try:
-        md = fmpy.read_model_description(str(path))
+        md = parse(path)
     except Exception as err:  # fmpy raises plain Exceptions for invalid descriptions
         raise SourceError(f"cannot read the modelDescription.xml of {path.name}: {err}") from err
     variables: dict[str, Var] = {}
