@@ -1,5 +1,6 @@
 """Everything in docs/evidence/, by one command: the work-precision sweeps of the three scenes,
-the paper's experiments 1 and 2, and the stability limits against extrapolation order.
+the paper's experiments 1 and 2, the stability limits against extrapolation order and the error
+budget of the paper scenes' dual-rate runs.
 
 Run: .venv/bin/python examples/paper_evidence.py   (about 5 to 10 minutes on 2 cores)
 """
@@ -17,7 +18,7 @@ SCENES = [
     ROOT / "models" / "hydraulic-manipulator" / "SystemStructure.ssd",
     ROOT / "models" / "dc-motor-arm" / "SystemStructure.ssd",
 ]
-SCRIPTS = ["paper_hydraulic_manipulator.py", "paper_dc_motor_arm.py", "paper_stability.py"]
+SCRIPTS = ["paper_hydraulic_manipulator.py", "paper_dc_motor_arm.py", "paper_stability.py", "error_budget.py"]
 
 
 def main() -> int:
