@@ -25,7 +25,17 @@ def main() -> int:
     for scene in SCENES:  # one after the other: wall times are measured, nothing else runs
         log = OUT / f"{scene.parent.name}-bench.txt"
         with open(log, "w") as f:
-            cmd = [sys.executable, "-m", "master", "bench", str(scene), "--out", str(OUT), "--repeats", "5"]
+            cmd = [
+                sys.executable,
+                "-m",
+                "master",
+                "bench",
+                str(scene.relative_to(ROOT)),
+                "--out",
+                str(OUT.relative_to(ROOT)),
+                "--repeats",
+                "5",
+            ]
             subprocess.run(cmd, check=True, stdout=f, stderr=subprocess.DEVNULL, cwd=ROOT)
         print(f"wrote {log.relative_to(ROOT)}")
     for script in SCRIPTS:
