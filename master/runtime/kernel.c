@@ -153,12 +153,17 @@ void mk_cancel(mk_shared *s, int32_t n_components, int32_t n_workers) {
     wake_all(s, n_components, n_workers);
 }
 
-void mk_stop(mk_shared *s, int64_t n_stop, int32_t n_components, int32_t n_workers) {
+/* Lower the shared stop to n_stop, never raise it (requests may race), and wake every waiter. */
+static void lower_stop(mk_shared *s, int64_t n_stop, int32_t n_components, int32_t n_workers) {
     int64_t cur = load(s->stop_at);
     while (n_stop < cur &&
            !__atomic_compare_exchange_n(&s->stop_at->value, &cur, n_stop, false, __ATOMIC_SEQ_CST, __ATOMIC_SEQ_CST)) {
     }
     wake_all(s, n_components, n_workers);
+}
+
+void mk_stop(mk_shared *s, int64_t n_stop, int32_t n_components, int32_t n_workers) {
+    lower_stop(s, n_stop, n_components, n_workers);
 }
 
 /* The first macro step no process may begin (an FMU ended the simulation), INT64_MAX if none. */
@@ -178,13 +183,12 @@ static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
     /* per component, written by its own process only: the earliest request is found afterwards */
     sh->stopper[2 * ci] = n_stop;
     sh->stopper[2 * ci + 1] = j;
-    int64_t cur = load(sh->stop_at); /* lower stop_at, never raise it: requests may race */
-    while (n_stop < cur &&
-           !__atomic_compare_exchange_n(&sh->stop_at->value, &cur, n_stop, false, __ATOMIC_SEQ_CST,
-                                        __ATOMIC_SEQ_CST)) {
-    }
-    wake_all(sh, k->n_components, sh->n_workers);
+    lower_stop(sh, n_stop, k->n_components, sh->n_workers);
 }
+
+/* Whether macro step n records a row: every record_every macro steps, and the last. Every process
+ * records the same macro steps, so the rows of the ring line up. */
+static bool row_due(const mk_kernel *k, int64_t n) { return (n + 1) % k->record_every == 0 || n + 1 == k->n_macro; }
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
 
@@ -639,7 +643,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     }
     if (code == MK_DONE) code = barrier(k); /* the next macro step reads the final sweep's samples */
     /* resampled in order, a barrier after each: its sources' samples are already published */
-    const bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
+    const bool due = row_due(k, n);
     for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
         int32_t i = k->resample_order[r];
         if (k->components[i].local && (due || k->components[i].resample_always)) code = resample(k, i, n);
@@ -757,9 +761,7 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
             code = MK_STOPPED;
             break;
         }
-        /* rows at the recording interval only (also when an FMU ends the run): every process
-         * records the same macro steps, so the rows of the ring line up */
-        bool due = (n + 1) % k->record_every == 0 || n + 1 == k->n_macro;
+        const bool due = row_due(k, n); /* also when an FMU ends the run */
         if (due && !k->shared && (code = ring_room(k))) break;
         if (k->shared && load(k->shared->cancel)) {
             code = aborted(k);
