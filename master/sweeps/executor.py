@@ -11,7 +11,9 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import os
+import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 from uuid import uuid4
@@ -20,6 +22,7 @@ from master.sweeps.cases import SweepError
 
 TASKS_PER_WORKER = 16  # at least this many tasks per worker thread: the last ones keep every worker busy
 MAX_BATCH = 8  # items per task at most: a lost worker loses no more, progress stays fine-grained
+POLL_S = 0.02  # how often the results and a held stop signal are looked at
 
 
 def usable_cpus() -> int:
@@ -38,11 +41,14 @@ class Executor:
         self.scheduler = scheduler
         self._stack = contextlib.ExitStack()
         self.client: Any = None
+        self.held: int | None = None  # a stop signal that arrived, raised at the next poll
 
     def __enter__(self) -> Executor:
+        self._stack.enter_context(self._holding_signals())
         try:
             from distributed import Client, LocalCluster
         except ImportError:
+            self._stack.close()
             raise SweepError(
                 "sweeps run on dask.distributed, which is not installed: pip install 'master[sweep]'"
             ) from None
@@ -67,6 +73,34 @@ class Executor:
 
     def __exit__(self, *exc: object) -> None:
         self._stack.close()
+        if exc[0] is None:
+            self._raise_held()
+
+    @contextlib.contextmanager
+    def _holding_signals(self) -> Iterator[None]:
+        """SIGINT, SIGTERM and SIGHUP are held, not raised where they land: raised inside one of
+        distributed's blocking calls, an interrupt leaves its event loop a broken callback (a
+        traceback on stderr) and the cluster half closed. `map` raises them between polls."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def hold(signum: int, frame: object) -> None:
+            self.held = self.held or signum
+
+        stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        old = {s: signal.signal(s, hold) for s in stops}
+        try:
+            yield
+        finally:
+            for s, handler in old.items():
+                signal.signal(s, handler)
+
+    def _raise_held(self) -> None:
+        if self.held is not None:
+            from master.backends.driver import Interrupted
+
+            raise Interrupted(self.held)
 
     @property
     def dashboard(self) -> str | None:
@@ -106,14 +140,20 @@ class Executor:
             ): batch
             for batch in batches
         }
+        done = as_completed(futures)
         try:
-            for future in as_completed(futures):
-                batch = futures[future]
-                try:
-                    outcomes = future.result()
-                except Exception as e:  # KilledWorker, CommClosedError, ...: the batch is lost
-                    outcomes = [e] * len(batch)
-                yield from zip(batch, outcomes, strict=True)
+            while not done.is_empty():
+                self._raise_held()
+                ready = done.next_batch(block=False)
+                if not ready:
+                    time.sleep(POLL_S)
+                for future in ready:
+                    batch = futures[future]
+                    try:
+                        outcomes = future.result()
+                    except Exception as e:  # KilledWorker, CommClosedError, ...: the batch is lost
+                        outcomes = [e] * len(batch)
+                    yield from zip(batch, outcomes, strict=True)
         finally:
             self.client.cancel([*futures, held])
 
