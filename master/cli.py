@@ -104,6 +104,23 @@ def _parser() -> argparse.ArgumentParser:
 
     _sweep_parser(sub)
 
+    t = sub.add_parser(
+        "tune",
+        help="find the fastest configuration within an error tolerance",
+        description="Search macro step, step ratios, extrapolation orders, coupling and solvers for the "
+        "fastest configuration whose error (against the reference solution, relative to each variable's "
+        "range) stays within TOL; write it as a new scenario beside the original with a report.",
+    )
+    t.add_argument("scenario", help="scenario file (.ssd / .ssp)")
+    t.add_argument("--tolerance", required=True, type=_positive, metavar="TOL",
+                   help="largest error allowed, relative to each variable's range (e.g. 1e-3)")  # fmt: skip
+    t.add_argument("--real-time-budget", type=_positive, metavar="F",
+                   help="wall seconds allowed per simulated second (1: real time)")  # fmt: skip
+    t.add_argument("--pilot-time", metavar="T", help="simulated s of each pilot run (default: the bench's)")
+    t.add_argument("--repeats", type=int, default=3, help="timed runs of each finalist (median)")
+    t.add_argument("-o", "--out", metavar="FILE",
+                   help="tuned scenario (default: beside the original, NAME.tuned.ssd / .ssp)")  # fmt: skip
+
     b = sub.add_parser("build-fmus", help="build the project's FMUs", add_help=False)
     b.add_argument("args", nargs=argparse.REMAINDER)
 
@@ -270,6 +287,8 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         return 0
     if args.command == "sweep":
         return _sweep(args, quiet)
+    if args.command == "tune":
+        return _tune(args, quiet)
     if args.command == "validate":
         problems = api.validate(args.scenario)
         for pr in problems:
@@ -310,6 +329,39 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         print(f"wrote {png}")
         return 0
     raise api.UsageError(f"unknown command {args.command}")
+
+
+def _tune(args: argparse.Namespace, quiet: bool) -> int:
+    from master import tune
+    from master.scenario.writer import write_settings
+
+    source = Path(args.scenario)
+    out = Path(args.out) if args.out else source.with_name(f"{source.stem}.tuned{source.suffix}")
+    if out.resolve() == source.resolve() or out.suffix != source.suffix:
+        raise api.UsageError(f"--out {out}: a new {source.suffix} file, not the original")
+    if args.repeats < 1:
+        raise api.UsageError(f"--repeats {args.repeats}: at least 1")
+    pilot = api._parse_time("--pilot-time", args.pilot_time) if args.pilot_time else None
+    sc = api.load_scenario(source)
+    result = tune.tune(sc, args.tolerance, args.real_time_budget, pilot, args.repeats)
+    text = tune.report(result)
+    report = out.with_suffix(".txt")
+    report.write_text(text + "\n")
+    if not quiet:  # the families that met the tolerance nowhere are in the report file
+        print(text.split("\n\nfamilies that met it at no step")[0])
+        print(f"({len(result.failed)} families met it at no step tried: see the report)")
+    if result.best is None:
+        print(f"error: no configuration tried meets {args.tolerance:g}; report: {report}", file=sys.stderr)
+        return 1
+    if not result.within_budget:
+        print(f"error: the fastest configuration within {args.tolerance:g} needs more than "
+              f"{args.real_time_budget:g} s per simulated s; report: {report}", file=sys.stderr)  # fmt: skip
+        return 1
+    write_settings(sc, tune.tuned_scenario(result), out, f"tuned by master tune to {args.tolerance:g}: "
+                   f"{result.best.family}")  # fmt: skip
+    if not quiet:
+        print(f"wrote {out} and {report}")
+    return 0
 
 
 def _sweep(args: argparse.Namespace, quiet: bool) -> int:

@@ -153,7 +153,7 @@ def generic_profile(sc: Scenario) -> Profile:
     return Profile(
         mechanics=tuple(c.name for c in sc.components),
         control=(),
-        record_interval=_lcm(sc.record_interval or H, 2 * H),
+        record_interval=lcm(sc.record_interval or H, 2 * H),
         baseline=base,
         single_steps=(),
         macro_steps=(2 * H, H, H / 2, H / 4),
@@ -263,7 +263,7 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         components=tuple(comps),
         connections=conns,
         macro_step=c.macro_step,
-        record_interval=_lcm(p.record_interval, c.macro_step),
+        record_interval=lcm(p.record_interval, c.macro_step),
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
     )
 
@@ -274,7 +274,7 @@ def _whole(sc: Scenario, step: Fraction) -> Fraction:
     return sc.start_time + max(n, 1) * step
 
 
-def _lcm(a: Fraction, b: Fraction) -> Fraction:
+def lcm(a: Fraction, b: Fraction) -> Fraction:
     """Least common multiple of two positive rationals (s)."""
     num = a.numerator * b.numerator // math.gcd(a.numerator, b.numerator)
     return Fraction(num, math.gcd(a.denominator, b.denominator))
@@ -289,6 +289,12 @@ def base_scene(sc: Scenario, p: Profile) -> Scenario:
         record_interval=p.record_interval,
         stop_time=_whole(sc, p.record_interval) if p.generic else stop,
     )
+
+
+def linearize_scene(sc: Scenario, p: Profile) -> LinearScheme:
+    """The scene of a profile (the project's FMUs) linearised at `p.linearize_at`, its base
+    configuration applied; `linear_scheme` gives any other configuration from it."""
+    return linearize(apply(sc, p, p.base), t=p.linearize_at)
 
 
 def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
@@ -441,7 +447,7 @@ def bench(
     p = profile_for(sc)
     base = base_scene(sc, p)
     ref = reference(base)
-    lin = None if p.generic else linearize(apply(sc, p, p.base), t=p.linearize_at)  # FMUs of our own
+    lin = None if p.generic else linearize_scene(sc, p)
     configs = configurations(p, quick)
     rows: list[Row | None] = [None] * len(configs)
     with Executor(None if scheduler else workers, scheduler) as ex:
