@@ -8,11 +8,13 @@ not estimated: each candidate is a pilot run over the bench horizon of the scene
 
 The search, in the bench's configuration space (master.evidence.bench):
 1. families: single-rate (every component with the mechanics solver), and for every control step
-   ratio and extrapolation order a dual-rate family; then, for the three cheapest dual-rate
-   families that meet the tolerance (or, failing those, the three nearest to it), their variants
-   with the other coupling, each control solver and AB2 mechanics. A scene without a bench
+   ratio and extrapolation order a dual-rate family; then a coordinate search: in each of up to
+   ROUNDS rounds, the three cheapest dual-rate families that meet the tolerance (or, failing
+   those, the nearest to it) not yet expanded have every neighbour one setting away tried
+   (`variants`: coupling, control first with the mechanics interpolating, the mechanics' order
+   and solver steps, control solver, order, ratio, mechanics solver). A scene without a bench
    profile varies its extrapolation order and coupling.
-2. per family, the largest macro step of a ladder of round steps (1, 2, 2.5, 4, 5 x 10^k dividing
+2. per family, the largest macro step of a ladder of round steps (1, 1.25, 2, 2.5, 4, 5 x 10^k dividing
    the record interval) that meets the tolerance: galloping from the best step found so far, then
    bisection (error grows with the step). A step the linear stability analysis finds unstable is
    not run; the search goes no lower than steps whose modelled cost is PRUNE times the best's.
@@ -35,13 +37,23 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from master.evidence import bench
-from master.evidence.bench import AB2, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, Config, Profile
+from master.evidence.bench import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, Config, Profile
 from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.scenario.model import Scenario
 
-MANTISSAS = (1, 2, Fraction(5, 2), 4, 5)  # the ladder of macro steps: these times powers of ten
+MANTISSAS = (
+    1,
+    Fraction(5, 4),
+    2,
+    Fraction(5, 2),
+    4,
+    5,
+)  # the ladder of macro steps: these times powers of ten
 LADDER_DECADES = (-6, 1)  # 1e-6 s ... 50 s
-VARIANTS_OF = 3  # the cheapest families that meet the tolerance get their variants tried
+VARIANTS_OF = 3  # per round, the cheapest families that meet the tolerance get their variants tried
+ROUNDS = 8  # rounds of that coordinate search
+CONTROL_SOLVERS = (EULER, AB2, AB3, SI_EULER, SI_MIDPOINT)
+MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
 FINALISTS = 4  # families timed again at the end
 FLOOR = 50  # no macro step below the scene's own (and its baseline's) divided by this
 PRUNE = 2.0  # a family's search goes no lower than steps modelled to cost this times the best so far
@@ -121,22 +133,38 @@ def families(p: Profile) -> list[tuple[str, Config]]:
     return out
 
 
-def variants(c: Config) -> list[tuple[str, Config]]:
-    """A dual-rate family's neighbours: the other coupling, each control solver, AB2 mechanics."""
-    coupling = "gauss-seidel" if (c.coupling or "jacobi") == "jacobi" else "jacobi"
-    out = [dataclasses.replace(c, coupling=coupling)]
-    out += [
-        dataclasses.replace(c, ctrl_solver=s) for s in (EULER, SI_EULER, SI_MIDPOINT) if s != c.ctrl_solver
-    ]
-    out.append(dataclasses.replace(c, mech_solver=AB2))
+def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
+    """A dual-rate family's neighbours, each one setting away: the coupling (Jacobi, Gauss-Seidel
+    either way, control first with the mechanics interpolating), the mechanics' order and solver
+    steps when they interpolate, the control solver, the extrapolation order, the step ratio,
+    the mechanics solver."""
+    out = []
+    if not c.control_first:
+        flip = "gauss-seidel" if (c.coupling or "jacobi") == "jacobi" else "jacobi"
+        out.append(dataclasses.replace(c, coupling=flip))
+        out += [dataclasses.replace(c, control_first=True, mech_order=2, mech_substeps=m) for m in (1, 2, 4)]
+    else:
+        out.append(dataclasses.replace(c, control_first=False, mech_order=0, mech_substeps=1))
+        out += [dataclasses.replace(c, mech_substeps=m) for m in (c.mech_substeps // 2, 2 * c.mech_substeps)
+                if 1 <= m <= MAX_SUBSTEPS]  # fmt: skip
+        out += [
+            dataclasses.replace(c, mech_order=k) for k in (c.mech_order - 1, c.mech_order + 1) if 0 <= k <= 3
+        ]
+    out += [dataclasses.replace(c, ctrl_solver=s) for s in CONTROL_SOLVERS if s != c.ctrl_solver]
+    out += [dataclasses.replace(c, order=k) for k in (c.order - 1, c.order + 1) if 0 <= k <= 3]
+    if c.ratio in p.ratios:
+        i = p.ratios.index(c.ratio)
+        out += [dataclasses.replace(c, ratio=p.ratios[j]) for j in (i - 1, i + 1) if 0 <= j < len(p.ratios)]
+    out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
     return [(_name(v), v) for v in out]
 
 
 def _name(c: Config) -> str:
     if c.single_rate:
         return f"single-rate {SOLVER_NAMES[c.mech_solver]}"
-    return (f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}"
-            f"{', ' + c.coupling if c.coupling else ''}")  # fmt: skip
+    how = (f", control first, mechanics order {c.mech_order} x{c.mech_substeps}" if c.control_first
+           else f", {c.coupling}" if c.coupling else "")  # fmt: skip
+    return f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}{how}"
 
 
 class _Pilot:
@@ -185,19 +213,27 @@ class _Pilot:
         for comp in scene.components:
             n = s.steps.get(comp.name, 0)
             if n and comp.name in s.fmu_time:
-                key = (comp.name, comp.parameters.get("solver"))
+                key = _step_kind(scene, comp)
                 self.per_step[key] = min(self.per_step.get(key, math.inf), s.fmu_time[comp.name] / n)
         if s.macro_steps:
             self.per_macro_step = min(self.per_macro_step, s.overhead_per_macro_step)
 
     def cost(self, c: Config) -> float:
-        """Modelled wall time (s) of the configuration over the pilot horizon (0 for a solver
-        not yet seen: never pruned on a guess)."""
+        """Modelled wall time (s) of the configuration over the pilot horizon (0 for a kind of
+        step not yet seen: never pruned on a guess)."""
         scene = bench.apply(self.sc, self.p, c)
         n = self.horizon / c.macro_step
-        per_macro = sum(comp.step_ratio * self.per_step.get((comp.name, comp.parameters.get("solver")), 0.0)
+        per_macro = sum(comp.step_ratio * self.per_step.get(_step_kind(scene, comp), 0.0)
                         for comp in scene.components)  # fmt: skip
         return float(n) * (per_macro + (self.per_macro_step if math.isfinite(self.per_macro_step) else 0.0))
+
+
+def _step_kind(scene: Scenario, comp) -> tuple:
+    """What a communication step of a component costs by: its solver, its solver steps per
+    communication step, polynomial inputs or not."""
+    internal = float(comp.parameters.get("internal_step", 0.0) or 0.0)
+    substeps = round(float(scene.macro_step) / comp.step_ratio / internal) if internal > 0 else 1
+    return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs
 
 
 def largest_step(
@@ -251,8 +287,10 @@ def tune(
     real_time_budget: float | None = None,
     pilot_time: Fraction | None = None,
     repeats: int = 3,
+    rounds: int = ROUNDS,
 ) -> TuneResult:
-    """Search the scene's configurations for the fastest that meets `tolerance` (see the module)."""
+    """Search the scene's configurations for the fastest that meets `tolerance` (see the module);
+    `rounds` of coordinate search at most."""
     from master.api import run
     from master.evidence.reference import reference
 
@@ -294,12 +332,17 @@ def tune(
                 failed.append((name, trial, why))
 
     search(families(p))
-    if not p.generic:
+    expanded: set[str] = set()
+    for _ in range(0 if p.generic else rounds):  # coordinate search from the best families
         # the cheapest dual-rate families within the tolerance, else those nearest to it
-        dual = [ch.trial for ch in rank() if not ch.trial.config.single_rate]
-        dual += sorted((t for _, t, _ in failed if not t.config.single_rate), key=lambda t: t.error)
-        for t in dual[:VARIANTS_OF]:
-            search(variants(t.config))
+        dual = [(ch.family, ch.trial) for ch in rank() if not ch.trial.config.single_rate]
+        dual += sorted(((n, t) for n, t, _ in failed if not t.config.single_rate), key=lambda f: f[1].error)
+        todo = [(n, t) for n, t in dual if n not in expanded][:VARIANTS_OF]
+        if not todo:
+            break
+        for name, t in todo:
+            expanded.add(name)
+            search(variants(t.config, p))
     ranked = rank()
     # the fastest single-rate and multirate families are timed too, so the report compares them
     single = [ch for ch in ranked if ch.trial.config.single_rate]

@@ -21,6 +21,7 @@ from master.evidence.errors import as_trajectory, compare
 from master.evidence.linear import is_stable
 from master.evidence.oscillator import SET_A, SET_A_Z0
 from master.evidence.reference import reference
+from master.evidence.stability import linearize
 from master.scenario.writer import write_settings
 from master.tune import ladder, tune, tuned_scenario
 
@@ -62,19 +63,14 @@ def test_tune_on_the_oscillator_meets_the_tolerance_against_the_exact_solution(t
     for col, i in (("mass1.x", 0), ("mass1.v", 1)):
         scale = float(np.ptp(exact[:, i]))
         assert np.max(np.abs(d[col] - exact[:, i])) / scale <= 1e-3, col
-    lin = bench.linearize_scene(tuned, bench.profile_for(tuned))
-    p = bench.profile_for(tuned)
-    assert is_stable(bench.linear_scheme(lin, p, _config_of(tuned, p)), float(tuned.macro_step))
+    _assert_linearly_stable(tuned)
 
 
-def _config_of(sc, p) -> bench.Config:
-    """The bench configuration a scene's settings amount to (a scene tuned within its profile)."""
-    ctrl = sc.component(p.control[0])
-    mech = sc.component(p.mechanics[0])
-    single = ctrl.step_ratio == 1 and ctrl.parameters.get("solver") == mech.parameters.get("solver")
-    return bench.Config("single-rate" if single else "dual-rate", sc.macro_step, ratio=ctrl.step_ratio,
-                        order=ctrl.extrapolation_order, mech_solver=mech.parameters["solver"],
-                        ctrl_solver=ctrl.parameters["solver"], coupling=sc.coupling)  # fmt: skip
+def _assert_linearly_stable(sc) -> None:
+    """The scene as written (its plan: ratios, orders, input modes, solvers and their steps),
+    linearised where its bench profile says, adds no growth at its macro step."""
+    lin = linearize(sc, t=bench.profile_for(sc).linearize_at)
+    assert is_stable(lin, float(sc.macro_step))
 
 
 @pytest.mark.parametrize(("scene", "tolerance"), [("hydraulic-manipulator", 3e-3), ("dc-motor-arm", 1e-2)])
@@ -83,7 +79,7 @@ def test_tune_on_the_paper_scenes_meets_the_tolerance(tmp_path, scene, tolerance
     tolerance of the Model Exchange reference on the paper's variables and linearly stable."""
     folder = _copy(tmp_path, REPO / "models" / scene)
     sc = api.load_scenario(folder / "SystemStructure.ssd")
-    result = tune(sc, tolerance, repeats=1)
+    result = tune(sc, tolerance, repeats=1, rounds=2)
     assert result.best is not None and result.best.trial.error <= tolerance
     out = write_settings(sc, tuned_scenario(result), folder / "tuned.ssd", "test")
     tuned = api.load_scenario(out)
@@ -93,6 +89,7 @@ def test_tune_on_the_paper_scenes_meets_the_tolerance(tmp_path, scene, tolerance
     res = api.run(horizon, backend="serial")
     rep = compare(as_trajectory(res.data), reference(bench.base_scene(sc, p)), list(p.variables))
     assert rep.worst_max <= tolerance
+    _assert_linearly_stable(tuned)
     assert result.stable_limit is not None and result.stable_limit >= float(tuned.macro_step)
 
 

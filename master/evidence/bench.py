@@ -53,6 +53,12 @@ class Config:
     backend: str = "serial"
     single_rate: bool = False  # every component with the mechanics solver at the macro step
     coupling: str | None = None  # "jacobi" or "gauss-seidel"; None: the scene's
+    # Gauss-Seidel with the control stepping first: the mechanics then interpolate the control's
+    # new samples (order mech_order) instead of holding them, over mech_substeps solver steps
+    # per macro step (the polynomials handed to the FMU: each substep sees its own time's force)
+    control_first: bool = False
+    mech_order: int = 0
+    mech_substeps: int = 1
 
     def __post_init__(self) -> None:
         if self.family == "single-rate":
@@ -66,9 +72,11 @@ class Config:
             return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {how}"
         if self.family in GENERIC_FAMILIES:
             return f"H={h:g}, order {self.order}, {how}"
+        first = (f", control first, mechanics order {self.mech_order} x{self.mech_substeps}"
+                 if self.control_first else "")  # fmt: skip
         return (
             f"{SOLVER_NAMES[self.mech_solver]} H={h:g} + {SOLVER_NAMES[self.ctrl_solver]} "
-            f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}, {how}"
+            f"h={h / self.ratio:g} (r={self.ratio}), order {self.order}{first}, {how}"
         )
 
 
@@ -244,22 +252,28 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     for comp in sc.components:
         ctrl = comp.name in p.control and not c.single_rate
         solver = c.ctrl_solver if ctrl else c.mech_solver
-        params = {**comp.parameters, "solver": solver, "internal_step": 0.0}
+        mech = comp.name in p.mechanics and c.control_first
+        substep = float(c.macro_step) / c.mech_substeps if mech and c.mech_substeps > 1 else 0.0
+        params = {**comp.parameters, "solver": solver, "internal_step": substep}
         comps.append(
             dataclasses.replace(
                 comp,
                 parameters=params,
                 step_ratio=c.ratio if ctrl else 1,
-                extrapolation_order=c.order if ctrl else 0,  # the control side extrapolates the mechanics
-                interpolate_inputs=False,
+                # the control side extrapolates the mechanics; the mechanics hold, or interpolate
+                extrapolation_order=c.order if ctrl else c.mech_order if mech else 0,
+                interpolate_inputs=substep > 0,
             )
         )
     conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
-    coupling = c.coupling or sc.coupling
+    coupling = "gauss-seidel" if c.control_first else c.coupling or sc.coupling
+    order = sc.order or tuple(x.name for x in sc.components) if coupling == "gauss-seidel" else sc.order
+    if c.control_first:
+        order = (*p.control, *p.mechanics)
     return dataclasses.replace(
         sc,
         coupling=coupling,
-        order=sc.order or tuple(x.name for x in sc.components) if coupling == "gauss-seidel" else sc.order,
+        order=order,
         components=tuple(comps),
         connections=conns,
         macro_step=c.macro_step,
@@ -302,11 +316,19 @@ def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
     comps = []
     for comp in lin.components:
         ctrl = comp.name in p.control and not c.single_rate
+        mech = comp.name in p.mechanics and c.control_first
+        mode = "polynomial" if mech and c.mech_substeps > 1 else "hold"
         comps.append(dataclasses.replace(comp, solver=c.ctrl_solver if ctrl else c.mech_solver,
-                                         step_ratio=c.ratio if ctrl else 1, substeps=1,
-                                         order=c.order if ctrl else 0))  # fmt: skip
-    coupling = c.coupling or ("gauss-seidel" if lin.first else "jacobi")
+                                         step_ratio=c.ratio if ctrl else 1,
+                                         substeps=c.mech_substeps if mech else 1,
+                                         order=c.order if ctrl else c.mech_order if mech else 0,
+                                         input_mode=mode))  # fmt: skip
+    coupling = (
+        "gauss-seidel" if c.control_first else c.coupling or ("gauss-seidel" if lin.first else "jacobi")
+    )
     first = (lin.first or tuple(x.name for x in lin.components)) if coupling == "gauss-seidel" else ()
+    if c.control_first:
+        first = (*p.control, *p.mechanics)
     return dataclasses.replace(lin, components=tuple(comps), order=c.order, first=first)
 
 
