@@ -152,9 +152,9 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
         ]
     out += [dataclasses.replace(c, ctrl_solver=s) for s in CONTROL_SOLVERS if s != c.ctrl_solver]
     out += [dataclasses.replace(c, order=k) for k in (c.order - 1, c.order + 1) if 0 <= k <= 3]
-    if c.ratio in p.ratios:
-        i = p.ratios.index(c.ratio)
-        out += [dataclasses.replace(c, ratio=p.ratios[j]) for j in (i - 1, i + 1) if 0 <= j < len(p.ratios)]
+    below = [r for r in p.ratios if r < c.ratio - 1][-1:]  # the profile's next ratios, and one either side
+    above = [r for r in p.ratios if r > c.ratio + 1][:1]
+    out += [dataclasses.replace(c, ratio=r) for r in (*below, c.ratio - 1, c.ratio + 1, *above) if r >= 1]
     out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
     return [(_name(v), v) for v in out]
 
