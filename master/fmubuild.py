@@ -3,14 +3,20 @@
 Each folder ``fmus/<name>/`` with a ``model.c`` is one FMU whose model identifier is
 ``<name>``.  The variable table in C is the single source of truth: a small program
 (``fmus/fmi/describe.c`` linked with the model) prints it as JSON and this module turns
-that into ``modelDescription.xml``.  The checked-in XML must equal the generated one.
+that into ``modelDescription.xml``.
+
+FMI 2.0 (the default) builds ``build/fmus/<name>.fmu`` with the layer's ``fmi2.c``; its
+checked-in ``fmus/<name>/modelDescription.xml`` must equal the generated one.  FMI 3.0
+Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c`` and an FMI 3.0
+description generated at build time (not checked in).  A table that uses FMI 3.0 types or
+arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.
 
 Command line::
 
-    python -m master.fmubuild [--write-xml] [name ...]
+    python -m master.fmubuild [--write-xml] [--fmi {2,3}] [name ...]
 
-builds the named FMUs (all if none) into ``build/fmus/<name>.fmu``; ``--write-xml``
-first regenerates ``fmus/<name>/modelDescription.xml`` from the C table.
+builds the named FMUs (all of that FMI version if none); ``--write-xml`` first regenerates
+``fmus/<name>/modelDescription.xml`` from the C table (FMI 2.0 only).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import math
 import os
 import re
 import shutil
+import struct
 import subprocess
 import sys
 import tempfile
@@ -52,7 +59,8 @@ SOLVERS_DIR = FMUS_DIR / "solvers"
 
 CFLAGS = ["-O2", "-Wall", "-Wextra", "-Werror", "-std=c99", "-D_POSIX_C_SOURCE=200809L", "-fPIC"]
 GENERATION_TOOL = "master.fmubuild"
-PLATFORM = "linux64"
+PLATFORM = "linux64"  # FMI 2.0 binaries folder
+PLATFORM3 = "x86_64-linux"  # FMI 3.0 platform tuple
 
 # Descriptions of the values 1 .. SOLVER_COUNT of the C enumeration SolverKind (fmus/fmi/model.h);
 # describe() checks the count against the C side.
@@ -66,6 +74,42 @@ SOLVER_ITEMS = [
 ]
 
 
+FMI_VERSIONS = (2, 3)
+# The layer's interface file of each FMI version; an FMU is built with its own one only.
+INTERFACE_FILES = {2: "fmi2.c", 3: "fmi3.c"}
+FMI_HEADERS = {
+    2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+    3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
+}
+
+# Types of the C tables (describe.c's names) that exist in FMI 3.0 only, and each type's storage.
+FMI3_ONLY_TYPES = ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64", "Binary")
+_STORAGE = {
+    "Real": "Real",
+    "Float32": "Real",
+    "Integer": "Integer",
+    "Solver": "Integer",
+    "Boolean": "Boolean",
+    "String": "String",
+    **{t: "Int64" for t in ("Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64")},
+    "UInt64": "UInt64",
+    "Binary": "Binary",
+}
+# FMI 3.0 element of each table type, and the value range of the integer ones.
+_FMI3_ELEMENT = {"Real": "Float64", "Integer": "Int32", "Solver": "Enumeration"}
+_INTEGER_RANGES = {
+    "Int8": (-(2**7), 2**7 - 1),
+    "UInt8": (0, 2**8 - 1),
+    "Int16": (-(2**15), 2**15 - 1),
+    "UInt16": (0, 2**16 - 1),
+    "Integer": (-(2**31), 2**31 - 1),
+    "UInt32": (0, 2**32 - 1),
+    "Int64": (-(2**63), 2**63 - 1),
+    "UInt64": (0, 2**64 - 1),
+}
+_FMI3_ONLY_MARK = re.compile(r"\.fmi3_only\s*=\s*1\b")  # in model.c: see model.h
+
+
 class FmuBuildError(RuntimeError):
     """A model cannot be described, compiled or packaged; the message says why."""
 
@@ -73,21 +117,37 @@ class FmuBuildError(RuntimeError):
 # ------------------------------------------------------------------ sources
 
 
-def project_fmu_names() -> list[str]:
-    """Names of the subfolders of fmus/ that contain a model.c, sorted."""
-    return sorted(p.parent.name for p in FMUS_DIR.glob("*/model.c"))
+def _check_fmi(fmi: int) -> None:
+    if fmi not in FMI_VERSIONS:
+        raise FmuBuildError(f"FMI version {fmi!r}: expected one of {', '.join(map(str, FMI_VERSIONS))}")
+
+
+def project_fmu_names(fmi: int = 2) -> list[str]:
+    """Names of the subfolders of fmus/ that contain a model.c, sorted: for FMI 2.0 (the default)
+    those that build as FMI 2.0, i.e. without the models whose table declares ``.fmi3_only = 1``;
+    for FMI 3.0 all of them."""
+    _check_fmi(fmi)
+    names = sorted(p.parent.name for p in FMUS_DIR.glob("*/model.c"))
+    return names if fmi == 3 else [n for n in names if not _declares_fmi3_only(n)]
+
+
+def _declares_fmi3_only(name: str) -> bool:
+    """Whether fmus/<name>/model.c says ``.fmi3_only = 1`` (read from the source: no compiling)."""
+    return bool(_FMI3_ONLY_MARK.search((FMUS_DIR / name / "model.c").read_text(encoding="utf-8")))
 
 
 def _model_dir(name: str) -> Path:
     d = FMUS_DIR / name
     if not (d / "model.c").is_file():
-        raise FmuBuildError(f"{d / 'model.c'}: no such model (known: {', '.join(project_fmu_names())})")
+        raise FmuBuildError(f"{d / 'model.c'}: no such model (known: {', '.join(project_fmu_names(3))})")
     return d
 
 
-def _c_sources(name: str) -> list[Path]:
-    """The C files compiled into the FMU: the layer (not describe.c), the solvers, the model."""
-    layer = [p for p in sorted(FMI_DIR.glob("*.c")) if p.name != "describe.c"]
+def _c_sources(name: str, fmi: int | None = 2) -> list[Path]:
+    """The C files compiled into the FMU of FMI version `fmi`: the layer with that version's
+    interface file (None: with none, for describe.c), the solvers, the model."""
+    skip = {"describe.c"} | {f for v, f in INTERFACE_FILES.items() if v != fmi}
+    layer = [p for p in sorted(FMI_DIR.glob("*.c")) if p.name not in skip]
     return layer + sorted(SOLVERS_DIR.glob("*.c")) + sorted(_model_dir(name).glob("*.c"))
 
 
@@ -135,7 +195,7 @@ def describe(name: str) -> dict[str, Any]:
         # Only the table is read: no need to optimise (-O0 compiles three times faster).
         flags = [f for f in CFLAGS if f != "-O2"] + ["-O0"]
         args = [_compiler(), *flags, *_include_flags(name), str(FMI_DIR / "describe.c")]
-        args += [str(p) for p in _c_sources(name)] + ["-o", str(exe), "-lm"]
+        args += [str(p) for p in _c_sources(name, None)] + ["-o", str(exe), "-lm"]
         _compile(args, f"describing model {name}")
         proc = subprocess.run([str(exe)], capture_output=True, text=True)
         if proc.returncode != 0:
@@ -147,6 +207,7 @@ def describe(name: str) -> dict[str, Any]:
         for key in ("start", "min", "max"):
             if isinstance(v[key], str):
                 v[key] = float(v[key])
+        v["size"] = math.prod(v["dimensions"])
     if desc["solver_count"] != len(SOLVER_ITEMS):
         raise FmuBuildError(
             f"{FMI_DIR / 'model.h'}: SOLVER_COUNT is {desc['solver_count']} but {Path(__file__).name} "
@@ -162,9 +223,11 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
     counts = {
         "Real": desc["n_reals"],
         "Integer": desc["n_integers"],
-        "Solver": desc["n_integers"],
         "Boolean": desc["n_booleans"],
         "String": desc["n_strings"],
+        "Int64": desc["n_int64s"],
+        "UInt64": desc["n_uint64s"],
+        "Binary": desc["n_binaries"],
     }
     variables = desc["variables"]
     problems: list[str] = []
@@ -172,6 +235,14 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
         problems.append(f'MODEL.identifier is "{desc["identifier"]}" but the folder is "{name}"')
     if len(variables) < 2 or variables[0]["name"] != "solver" or variables[1]["name"] != "internal_step":
         problems.append("the table must start with COMMON_VARIABLES(...)")
+    feature = _fmi3_feature(desc)
+    if feature and not desc["fmi3_only"]:
+        problems.append(f"{feature}, which FMI 2.0 lacks: declare `.fmi3_only = 1` in MODEL")
+    if desc["fmi3_only"] != _declares_fmi3_only(name):
+        problems.append(
+            f"MODEL.fmi3_only is {int(desc['fmi3_only'])} but the source does not say `.fmi3_only = "
+            f"{int(desc['fmi3_only'])}` literally (project_fmu_names reads it from there)"
+        )
     real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
     state_vrs = {real_vr.get(s) for s in desc["state_slots"]}
     seen_names: set[str] = set()
@@ -181,16 +252,28 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
         if v["name"] in seen_names:
             problems.append(f"{label}: duplicate name")
         seen_names.add(v["name"])
-        kind = "Integer" if v["type"] == "Solver" else v["type"]
-        if not 0 <= v["slot"] < counts[v["type"]]:
-            problems.append(f"{label}: slot {v['slot']} outside the {counts[v['type']]} {kind} slots")
-        elif (kind, v["slot"]) in used_slots:
-            problems.append(f"{label}: shares {kind} slot {v['slot']} with {used_slots[(kind, v['slot'])]}")
-        used_slots[(kind, v["slot"])] = f'"{v["name"]}"'
+        kind = _STORAGE.get(v["type"])
+        if kind is None:
+            problems.append(f"{label}: unknown type {v['type']!r}")
+            continue
+        size = v["size"]
+        if not (0 <= v["slot"] and v["slot"] + size <= counts[kind]):
+            where_slots = f"slot {v['slot']}" if size == 1 else f"slots {v['slot']}..{v['slot'] + size - 1}"
+            problems.append(f"{label}: {where_slots} outside the {counts[kind]} {kind} slots")
+        else:
+            for k in range(size):
+                slot = v["slot"] + k
+                if (kind, slot) in used_slots:
+                    problems.append(f"{label}: shares {kind} slot {slot} with {used_slots[(kind, slot)]}")
+                    break
+            for k in range(size):
+                used_slots[(kind, v["slot"] + k)] = f'"{v["name"]}"'
         if v["derivative_of"] != -1:
             target = variables[v["derivative_of"]] if 0 <= v["derivative_of"] < len(variables) else None
             if v["type"] != "Real" or target is None or target["type"] != "Real":
                 problems.append(f"{label}: derivative_of {v['derivative_of']} is not a Real variable")
+            elif size != 1 or target["size"] != 1:
+                problems.append(f"{label}: a state and its derivative must be scalars")
         for dep in (v["dependencies"] or "").split():
             if dep == STATES:
                 continue
@@ -201,8 +284,7 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
                     f'{label}: dependency {dep} ("{variables[int(dep)]["name"]}") '
                     "is neither an input nor a continuous state"
                 )
-        if v["type"] != "String" and v["initial"] != "calculated" and not math.isfinite(v["start"]):
-            problems.append(f"{label}: start value {v['start']} is not finite")
+        problems += _start_problems(label, v, desc)
     for i in range(desc["n_states"]):
         s, d = desc["state_slots"][i], desc["derivative_slots"][i]
         if s not in real_vr:
@@ -216,6 +298,60 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
             )
     if problems:
         raise FmuBuildError(f"{where}: invalid model table:\n  " + "\n  ".join(problems))
+
+
+def _start_problems(label: str, v: dict[str, Any], desc: dict[str, Any]) -> list[str]:
+    """What is wrong with a variable's start value (the C side holds it in a double or a string)."""
+    if v["type"] == "String":
+        return []
+    if v["type"] == "Binary":
+        text = v["start_string"] or ""
+        if len(text) % 2 or not re.fullmatch(r"[0-9a-fA-F]*", text):
+            return [f"{label}: Binary start {text!r} is not an even number of hex digits"]
+        if len(text) // 2 > desc["binary_capacity"]:
+            return [f"{label}: Binary start has {len(text) // 2} bytes, more than {desc['binary_capacity']}"]
+        return []
+    if v["initial"] == "calculated":
+        return []
+    start = float(v["start"])
+    if not math.isfinite(start):
+        return [f"{label}: start value {start} is not finite"]
+    if v["type"] in FMI3_ONLY_TYPES and v["type"] in _INTEGER_RANGES:
+        lo, hi = _INTEGER_RANGES[v["type"]]
+        if not start.is_integer() or not lo <= start <= hi:
+            return [f"{label}: start value {start} is not a {v['type']}"]
+    if v["type"] == "Float32" and struct.unpack("f", struct.pack("f", start))[0] != start:
+        return [f"{label}: start value {start!r} is not exactly a Float32"]
+    return []
+
+
+def _fmi3_feature(desc: dict[str, Any]) -> str | None:
+    """The first FMI 3.0-only type or array of a table, in words (None: there is none)."""
+    for v in desc["variables"]:
+        if v["type"] in FMI3_ONLY_TYPES:
+            return f'variable "{v["name"]}" is {v["type"]}'
+        if v["dimensions"]:
+            return f'variable "{v["name"]}" is an array'
+    return None
+
+
+def _fmi3_only_reason(desc: dict[str, Any]) -> str | None:
+    """Why a table builds as FMI 3.0 only (None: it builds as FMI 2.0 too)."""
+    return _fmi3_feature(desc) or ("the table declares .fmi3_only = 1" if desc["fmi3_only"] else None)
+
+
+def _check_fmi3_table(name: str, desc: dict[str, Any]) -> None:
+    """What an FMI 3.0 description needs beyond the common checks."""
+    problems = []
+    for vr, v in enumerate(desc["variables"]):
+        label = f'variable {vr} "{v["name"]}"'
+        if v["name"] == "time":
+            problems.append(f"{label}: the name is taken by FMI 3.0's independent variable")
+        if v["variability"] == "continuous" and v["type"] not in ("Real", "Float32"):
+            problems.append(f"{label}: a {v['type']} cannot be continuous in FMI 3.0 (use discrete)")
+    if problems:
+        where = FMUS_DIR / name / "model.c"
+        raise FmuBuildError(f"{where}: invalid model table for FMI 3.0:\n  " + "\n  ".join(problems))
 
 
 # ------------------------------------------------------------------- units
@@ -295,13 +431,24 @@ def _number(x: float) -> str:
     return repr(int(x)) if float(x).is_integer() and abs(x) < 1e15 else repr(float(x))
 
 
-def _source_names(name: str) -> list[str]:
-    return [p.name for p in _c_sources(name)]
+def _source_names(name: str, fmi: int = 2) -> list[str]:
+    return [p.name for p in _c_sources(name, fmi)]
 
 
-def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
-    """modelDescription.xml of model `name`, generated from its C table."""
+def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: int = 2) -> str:
+    """modelDescription.xml of model `name` for FMI version `fmi`, generated from its C table.
+
+    FMI 2.0 refuses (FmuBuildError, one line) a table that builds as FMI 3.0 only."""
+    _check_fmi(fmi)
     desc = desc or describe(name)
+    if fmi == 3:
+        return _model_description_xml3(name, desc)
+    reason = _fmi3_only_reason(desc)
+    if reason:
+        raise FmuBuildError(
+            f"{FMUS_DIR / name / 'model.c'}: builds as FMI 3.0 only ({reason}); "
+            f"build it with fmi=3 (python -m master.fmubuild --fmi 3 {name})"
+        )
     variables = desc["variables"]
     root = etree.Element(
         "fmiModelDescription",
@@ -336,18 +483,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
         for source in _source_names(name):
             etree.SubElement(files, "File", name=source)
 
-    units = sorted({v["unit"] for v in variables if v["unit"]})
-    if units:
-        unit_defs = etree.SubElement(root, "UnitDefinitions")
-        for unit in units:
-            u = etree.SubElement(unit_defs, "Unit", name=unit)
-            base = base_unit(unit)
-            if base is not None:
-                scale, dims = base
-                attrs = {k: str(e) for k, e in dims.items()}
-                if scale != 1.0:
-                    attrs["factor"] = repr(scale)
-                etree.SubElement(u, "BaseUnit", **attrs)
+    _unit_definitions(root, {v["unit"] for v in variables if v["unit"]})
 
     if any(v["type"] == "Solver" for v in variables):
         types = etree.SubElement(root, "TypeDefinitions")
@@ -356,9 +492,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
         for value, (item, text) in enumerate(SOLVER_ITEMS, start=1):
             etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
 
-    cats = etree.SubElement(root, "LogCategories")
-    for cat in desc["log_categories"]:
-        etree.SubElement(cats, "Category", name=cat["name"], description=cat["description"])
+    _log_categories(root, desc)
 
     vendor = etree.SubElement(etree.SubElement(root, "VendorAnnotations"), "Tool", name=GENERATION_TOOL)
     etree.SubElement(vendor, "Capabilities", maxInputDerivativeOrder=str(desc["max_input_derivative_order"]))
@@ -443,6 +577,173 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None) -> str:
     return text.decode("utf-8")
 
 
+def _unit_definitions(root: etree._Element, units: set[str]) -> None:
+    """UnitDefinitions (with SI base units where known) of the units used (the same in FMI 2.0 and 3.0)."""
+    if units:
+        unit_defs = etree.SubElement(root, "UnitDefinitions")
+        for unit in sorted(units):
+            u = etree.SubElement(unit_defs, "Unit", name=unit)
+            base = base_unit(unit)
+            if base is not None:
+                scale, dims = base
+                attrs = {k: str(e) for k, e in dims.items()}
+                if scale != 1.0:
+                    attrs["factor"] = repr(scale)
+                etree.SubElement(u, "BaseUnit", **attrs)
+
+
+def _log_categories(root: etree._Element, desc: dict[str, Any]) -> None:
+    cats = etree.SubElement(root, "LogCategories")
+    for cat in desc["log_categories"]:
+        etree.SubElement(cats, "Category", name=cat["name"], description=cat["description"])
+
+
+def _dependency_vrs(desc: dict[str, Any], deps: str) -> list[int]:
+    """Value references in a table's dependency string ("states" = every continuous state)."""
+    variables = desc["variables"]
+    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
+    states = [real_vr[s] for s in desc["state_slots"]]
+    return [d for dep in deps.split() for d in (states if dep == STATES else [int(dep)])]
+
+
+def _start_text3(v: dict[str, Any]) -> str:
+    """The FMI 3.0 start attribute of a number or Boolean: one value per element."""
+    if v["type"] == "Boolean":
+        one = "true" if v["start"] else "false"
+    elif v["type"] in _INTEGER_RANGES or v["type"] == "Solver":
+        one = str(int(v["start"]))
+    else:
+        one = _number(v["start"])
+    return " ".join([one] * v["size"])
+
+
+def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
+    """FMI 3.0 Co-Simulation modelDescription.xml.  Value references are the table positions
+    (unique across all types); `time`, the independent variable, takes the next one."""
+    _check_fmi3_table(name, desc)
+    variables = desc["variables"]
+    time_vr = len(variables)
+    root = etree.Element(
+        "fmiModelDescription",
+        fmiVersion="3.0",
+        modelName=name,
+        instantiationToken=desc["guid"],
+        description=desc["description"] or "",
+        generationTool=GENERATION_TOOL,
+        variableNamingConvention="flat",
+    )
+    scalars_only = not any(v["dimensions"] for v in variables)
+    etree.SubElement(
+        root,
+        "CoSimulation",
+        modelIdentifier=name,
+        canGetAndSetFMUState="true",
+        canSerializeFMUState="true",
+        # fmi3GetDirectionalDerivative takes scalar Float64 variables only
+        providesDirectionalDerivatives="true" if scalars_only else "false",
+        canHandleVariableCommunicationStepSize="true",
+        canReturnEarlyAfterIntermediateUpdate="false",
+        hasEventMode="false",
+    )
+    _unit_definitions(root, {v["unit"] for v in variables if v["unit"]} | {"s"})
+    if any(v["type"] == "Solver" for v in variables):
+        types = etree.SubElement(root, "TypeDefinitions")
+        enum = etree.SubElement(types, "EnumerationType", name="Solver")
+        for value, (item, text) in enumerate(SOLVER_ITEMS, start=1):
+            etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
+    _log_categories(root, desc)
+
+    mv = etree.SubElement(root, "ModelVariables")
+    etree.SubElement(
+        mv,
+        "Float64",
+        name="time",
+        valueReference=str(time_vr),
+        description="simulation time",
+        causality="independent",
+        variability="continuous",
+        unit="s",
+    )
+    for vr, v in enumerate(variables):
+        kind = v["type"]
+        e = etree.SubElement(mv, _FMI3_ELEMENT.get(kind, kind), name=v["name"], valueReference=str(vr))
+        if v["description"]:
+            e.set("description", v["description"])
+        e.set("causality", v["causality"])
+        e.set("variability", v["variability"])
+        if v["initial"]:
+            e.set("initial", v["initial"])
+        has_start = v["effective_initial"] in ("exact", "approx") or v["causality"] == "input"
+        if kind == "Solver":
+            e.set("declaredType", "Solver")
+        elif kind in ("Real", "Float32"):
+            if v["unit"]:
+                e.set("unit", v["unit"])
+            if math.isfinite(v["min"]):
+                e.set("min", _number(v["min"]))
+            if math.isfinite(v["max"]):
+                e.set("max", _number(v["max"]))
+        elif kind in _INTEGER_RANGES:
+            if math.isfinite(v["min"]):
+                e.set("min", str(int(v["min"])))
+            if math.isfinite(v["max"]):
+                e.set("max", str(int(v["max"])))
+        elif kind == "Binary":
+            e.set("maxSize", str(desc["binary_capacity"]))
+        if has_start and kind not in ("String", "Binary"):
+            e.set("start", _start_text3(v))
+        if v["derivative_of"] != -1:
+            e.set("derivative", str(v["derivative_of"]))
+        for extent in v["dimensions"]:
+            etree.SubElement(e, "Dimension", start=str(extent))
+        if has_start and kind in ("String", "Binary"):
+            text = (v["start_string"] or "").lower() if kind == "Binary" else v["start_string"] or ""
+            for _ in range(v["size"]):
+                etree.SubElement(e, "Start", value=text)
+
+    real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
+    state_vrs = [real_vr[s] for s in desc["state_slots"]]
+    derivative_vrs = [real_vr[s] for s in desc["derivative_slots"]]
+    structure = etree.SubElement(root, "ModelStructure")
+
+    def unknown(element: str, vr: int, with_dependencies: bool) -> None:
+        u = etree.SubElement(structure, element, valueReference=str(vr))
+        deps = variables[vr]["dependencies"]
+        if with_dependencies and deps is not None:
+            u.set("dependencies", " ".join(str(d) for d in _dependency_vrs(desc, deps)))
+
+    for vr, v in enumerate(variables):
+        if v["causality"] == "output":
+            unknown("Output", vr, True)
+    for vr in derivative_vrs:
+        unknown("ContinuousStateDerivative", vr, True)
+    # As in FMI 2.0: initial unknowns without dependencies (= may depend on every known).
+    for vr, v in enumerate(variables):
+        calculated = v["effective_initial"] in ("approx", "calculated")
+        if (
+            (v["causality"] == "output" and calculated)
+            or v["causality"] == "calculatedParameter"
+            or ((vr in state_vrs or vr in derivative_vrs) and calculated)
+        ):
+            unknown("InitialUnknown", vr, False)
+
+    text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    return text.decode("utf-8")
+
+
+def build_description_xml(name: str) -> str:
+    """sources/buildDescription.xml of the FMI 3.0 FMU: how to compile its sources."""
+    root = etree.Element("fmiBuildDescription", fmiVersion="3.0")
+    config = etree.SubElement(root, "BuildConfiguration", modelIdentifier=name)
+    files = etree.SubElement(config, "SourceFileSet", language="C99")
+    for source in _source_names(name, 3):
+        etree.SubElement(files, "SourceFile", name=source)
+    etree.SubElement(files, "PreprocessorDefinition", name="_POSIX_C_SOURCE", value="200809L")
+    etree.SubElement(config, "Library", name="m", external="true", description="the C math library")
+    text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    return text.decode("utf-8")
+
+
 def write_xml(names: list[str] | None = None) -> list[Path]:
     """Regenerate fmus/<name>/modelDescription.xml from the C tables; returns the files written."""
     written = []
@@ -456,39 +757,49 @@ def write_xml(names: list[str] | None = None) -> list[Path]:
 # ------------------------------------------------------------------- build
 
 
-def build_fmu(name: str) -> Path:
-    """Compile and package fmus/<name> into build/fmus/<name>.fmu; returns its path.
+def _build_dir(fmi: int) -> Path:
+    return BUILD_DIR if fmi == 2 else BUILD_DIR / f"fmi{fmi}"
 
-    The checked-in modelDescription.xml must equal the one generated from the C
-    table (else FmuBuildError says to run --write-xml).  Builds in a temporary
-    folder and moves the finished .fmu into place atomically.
+
+def build_fmu(name: str, fmi: int = 2) -> Path:
+    """Compile and package fmus/<name> as an FMI `fmi` FMU; returns its path.
+
+    FMI 2.0: build/fmus/<name>.fmu; the checked-in modelDescription.xml must equal the one
+    generated from the C table (else FmuBuildError says to run --write-xml), and a table that
+    builds as FMI 3.0 only is refused.  FMI 3.0 (Co-Simulation): build/fmus/fmi3/<name>.fmu with
+    the description generated now.  Builds in a temporary folder and moves the finished .fmu
+    into place atomically.
     """
+    _check_fmi(fmi)
     model_dir = _model_dir(name)
     xml_path = model_dir / "modelDescription.xml"
     if sys.stderr.isatty():  # a few seconds of compiling should not look like a hang
-        print(f"building FMU {name} from its C sources ...", file=sys.stderr, flush=True)
+        print(f"building FMU {name} (FMI {fmi}.0) from its C sources ...", file=sys.stderr, flush=True)
     started = time.time()
     desc = describe(name)
-    expected = model_description_xml(name, desc)
-    if not xml_path.is_file() or xml_path.read_text(encoding="utf-8") != expected:
+    expected = model_description_xml(name, desc, fmi)
+    if fmi == 2 and (not xml_path.is_file() or xml_path.read_text(encoding="utf-8") != expected):
         state = "missing" if not xml_path.is_file() else "out of date with the C table"
         raise FmuBuildError(
             f"{xml_path}: {state}; regenerate it with: python -m master.fmubuild --write-xml {name}"
         )
-    BUILD_DIR.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=BUILD_DIR) as tmp:
+    build_dir = _build_dir(fmi)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=build_dir) as tmp:
         stage = Path(tmp) / "fmu"
-        binary = stage / "binaries" / PLATFORM / f"{name}.so"
+        binary = stage / "binaries" / (PLATFORM if fmi == 2 else PLATFORM3) / f"{name}.so"
         binary.parent.mkdir(parents=True)
         args = [_compiler(), *CFLAGS, "-shared", "-Wl,--no-undefined", *_include_flags(name)]
-        args += [str(p) for p in _c_sources(name)] + ["-o", str(binary), "-lm"]
-        _compile(args, f"building FMU {name}")
+        args += [str(p) for p in _c_sources(name, fmi)] + ["-o", str(binary), "-lm"]
+        _compile(args, f"building FMU {name}" + ("" if fmi == 2 else f" (FMI {fmi}.0)"))
         sources = stage / "sources"
         sources.mkdir()
-        for src in _c_sources(name) + _headers(name):
+        for src in _c_sources(name, fmi) + _headers(name):
             shutil.copy2(src, sources / src.name)
-        for header in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
+        for header in FMI_HEADERS[fmi]:
             shutil.copy2(_fmi_include_dir() / header, sources / header)
+        if fmi == 3:
+            (sources / "buildDescription.xml").write_text(build_description_xml(name), encoding="utf-8")
         (stage / "modelDescription.xml").write_text(expected, encoding="utf-8")
         archive = Path(tmp) / f"{name}.fmu"
         with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -498,25 +809,27 @@ def build_fmu(name: str) -> Path:
         # Date the FMU from the start of the build: a source edited while compiling
         # is then newer than the FMU, and fmu_path builds again.
         os.utime(archive, (started, started))
-        target = BUILD_DIR / f"{name}.fmu"
+        target = build_dir / f"{name}.fmu"
         os.replace(archive, target)
     return target
 
 
-def _inputs_of(name: str) -> list[Path]:
+def _inputs_of(name: str, fmi: int = 2) -> list[Path]:
     """The files an FMU is built from: a change in any of them makes it stale."""
     xml = sorted(_model_dir(name).glob("*.xml"))
-    return _c_sources(name) + _headers(name) + xml + [FMI_DIR / "describe.c", Path(__file__)]
+    return _c_sources(name, fmi) + _headers(name) + xml + [FMI_DIR / "describe.c", Path(__file__)]
 
 
-def fmu_path(name: str) -> Path:
-    """Path of build/fmus/<name>.fmu, (re)built if missing or older than any of its sources."""
-    target = BUILD_DIR / f"{name}.fmu"
+def fmu_path(name: str, fmi: int = 2) -> Path:
+    """Path of the FMI `fmi` FMU of fmus/<name> (build/fmus/<name>.fmu, FMI 3.0:
+    build/fmus/fmi3/<name>.fmu), (re)built if missing or older than any of its sources."""
+    _check_fmi(fmi)
+    target = _build_dir(fmi) / f"{name}.fmu"
     if target.is_file():
         built = target.stat().st_mtime
-        if all(p.stat().st_mtime <= built for p in _inputs_of(name)):
+        if all(p.stat().st_mtime <= built for p in _inputs_of(name, fmi)):
             return target
-    return build_fmu(name)
+    return build_fmu(name, fmi)
 
 
 def _shown(path: Path) -> str:
@@ -527,16 +840,31 @@ def _shown(path: Path) -> str:
 def main(argv: list[str] | None = None, prog: str = "python -m master.fmubuild") -> int:
     """Command line: ``[--write-xml] [name ...]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog=prog, description="Build the project's FMUs from their C sources.")
-    parser.add_argument("--write-xml", action="store_true", help="regenerate modelDescription.xml first")
-    parser.add_argument("names", nargs="*", help="models to build (default: all folders with model.c)")
+    parser.add_argument(
+        "--write-xml", action="store_true", help="regenerate modelDescription.xml first (FMI 2)"
+    )
+    parser.add_argument(
+        "--fmi",
+        type=int,
+        choices=FMI_VERSIONS,
+        default=2,
+        help="FMI version: 2 (default, build/fmus/NAME.fmu) or 3 (Co-Simulation, build/fmus/fmi3/NAME.fmu)",
+    )
+    parser.add_argument(
+        "names", nargs="*", help="models to build (default: every folder with model.c that builds for --fmi)"
+    )
     args = parser.parse_args(argv)
-    names = args.names or project_fmu_names()
+    if args.write_xml and args.fmi != 2:
+        parser.error(
+            "--write-xml writes the checked-in FMI 2.0 descriptions (FMI 3.0 ones are built each time)"
+        )
+    names = args.names or project_fmu_names(args.fmi)
     try:
         if args.write_xml:
             for path in write_xml(names):
                 print(f"wrote {_shown(path)}")
         for name in names:
-            print(f"built {_shown(build_fmu(name))}")
+            print(f"built {_shown(build_fmu(name, args.fmi))}")
     except FmuBuildError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -1,4 +1,4 @@
-/* derivative.c: fmi2GetDirectionalDerivative.
+/* derivative.c: GetDirectionalDerivative (FMI 2.0 and 3.0, scalar Real variables).
  *
  * d(unknowns)/d(knowns) * seed.  Derivatives with respect to states use the
  * model's analytic Jacobian when it has one; anything else (outputs, inputs,
@@ -25,8 +25,8 @@ static int derivative_index(const Instance *inst, const Variable *v) {
 }
 
 /* Evaluate all unknowns with the knowns at base + eps * seed; write them into out. */
-static int evaluate(Instance *inst, const fmi2ValueReference unknown[], size_t n_unknown,
-                    const fmi2ValueReference known[], size_t n_known, const double seed[], double eps, double out[]) {
+static int evaluate(Instance *inst, const unsigned unknown[], size_t n_unknown, const unsigned known[],
+                    size_t n_known, const double seed[], double eps, double out[]) {
     const ModelDef *m = inst->model;
     int rc;
     for (size_t j = 0; j < n_known; j++)
@@ -39,10 +39,8 @@ static int evaluate(Instance *inst, const fmi2ValueReference unknown[], size_t n
     return rc;
 }
 
-fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unknown[], size_t n_unknown,
-                                  const fmi2ValueReference known[], size_t n_known, const double seed[],
-                                  double result[]) {
-    static const char fn[] = "fmi2GetDirectionalDerivative";
+LayerStatus directional_derivative(Instance *inst, const char *fn, const unsigned unknown[], size_t n_unknown,
+                                   const unsigned known[], size_t n_known, const double seed[], double result[]) {
     const ModelDef *m = inst->model;
     int analytic = m->jacobian != NULL;
     double scale = 0.0, seed_norm = 0.0, eps;
@@ -51,19 +49,21 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
     if (n_known > (size_t)m->n_variables || n_unknown > (size_t)m->n_variables) {
         layer_log(inst, LOG_ERROR, "%s: %zu unknowns and %zu knowns but the model has only %d variables", fn,
                   n_unknown, n_known, m->n_variables);
-        return fmi2Error;
+        return LAYER_ERROR;
     }
     for (size_t i = 0; i < n_unknown + n_known; i++) {
-        fmi2ValueReference vr = i < n_unknown ? unknown[i] : known[i - n_unknown];
+        unsigned vr = i < n_unknown ? unknown[i] : known[i - n_unknown];
         const Variable *v = variable_of(inst, vr);
-        if (!v || v->type != T_REAL) {
-            layer_log(inst, LOG_ERROR, "%s: value reference %u is %s", fn, (unsigned)vr,
-                      v ? "not a Real variable" : "out of range");
-            return fmi2Error;
+        if (!v || v->type != T_REAL || v->causality == C_INDEPENDENT || variable_size(inst, vr) != 1) {
+            const char *why = !v                  ? "out of range"
+                              : v->type != T_REAL ? "not a Real variable"
+                                                  : "an array or time, not a scalar Real variable";
+            layer_log(inst, LOG_ERROR, "%s: value reference %u is %s", fn, vr, why);
+            return LAYER_ERROR;
         }
         if (i < n_unknown ? derivative_index(inst, v) < 0 : state_index(inst, v) < 0) analytic = 0;
     }
-    if (refresh(inst, 1, fn)) return fmi2Error;
+    if (refresh(inst, 1, fn)) return LAYER_ERROR;
 
     if (analytic) { /* J * seed with the model's Jacobian at the current point */
         int n = m->n_states;
@@ -71,7 +71,7 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
         if (m->jacobian(inst, inst->core->time, inst->x, inst->jac) != MODEL_OK) {
             layer_log(inst, LOG_ERROR, "%s: model Jacobian failed at t = %.17g%s", fn, inst->core->time,
                       model_error_suffix(inst));
-            return fmi2Error;
+            return LAYER_ERROR;
         }
         for (size_t i = 0; i < n_unknown; i++) {
             int row = derivative_index(inst, &m->variables[unknown[i]]);
@@ -80,7 +80,7 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
                 sum += inst->jac[row * n + state_index(inst, &m->variables[known[j]])] * seed[j];
             result[i] = sum;
         }
-        return fmi2OK;
+        return LAYER_OK;
     }
 
     /* Central differences along the seed, step relative to the size of the knowns. */
@@ -92,7 +92,7 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
     }
     if (seed_norm == 0.0) {
         for (size_t i = 0; i < n_unknown; i++) result[i] = 0.0;
-        return fmi2OK;
+        return LAYER_OK;
     }
     eps = cbrt(DBL_EPSILON) * fmax(1.0, scale) / seed_norm;
     rc = evaluate(inst, unknown, n_unknown, known, n_known, seed, eps, inst->fd_plus);
@@ -101,8 +101,8 @@ fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unkno
     if (rc) {
         layer_log(inst, LOG_ERROR, "%s: model equations failed while differentiating at t = %.17g%s", fn,
                   inst->core->time, model_error_suffix(inst));
-        return fmi2Error;
+        return LAYER_ERROR;
     }
     for (size_t i = 0; i < n_unknown; i++) result[i] = (inst->fd_plus[i] - inst->fd_minus[i]) / (2.0 * eps);
-    return fmi2OK;
+    return LAYER_OK;
 }

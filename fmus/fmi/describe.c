@@ -2,9 +2,9 @@
  *
  * Linked with the model's sources and the layer, never into the FMU.
  * master/fmubuild.py turns the JSON into modelDescription.xml, so the C side is
- * the only source of truth: the variable table, each variable's effective
- * `initial` (the layer's rule), the log categories, the highest input
- * derivative order and the number of solvers.
+ * the only source of truth: the variable table (with the extents of FMI 3.0
+ * arrays), each variable's effective `initial` (the layer's rule), the log
+ * categories, the highest input derivative order and the number of solvers.
  */
 #include <math.h>
 #include <stdio.h>
@@ -44,7 +44,9 @@ static void json_ints(const int *a, int n) {
 }
 
 int main(void) {
-    static const char *const types[] = {"Real", "Integer", "Boolean", "String", "Solver"};
+    static const char *const types[T_COUNT] = {"Real",  "Integer", "Boolean", "String", "Solver",
+                                               "Float32", "Int8",  "UInt8",   "Int16",  "UInt16",
+                                               "UInt32",  "Int64", "UInt64",  "Binary"};
     static const char *const causalities[] = {"parameter", "calculatedParameter", "input",
                                               "output",    "local",               "independent"};
     static const char *const variabilities[] = {"constant", "fixed", "tunable", "discrete", "continuous"};
@@ -59,6 +61,9 @@ int main(void) {
     json_string(m->description);
     printf(",\n\"n_reals\": %d, \"n_integers\": %d, \"n_booleans\": %d, \"n_strings\": %d,\n", m->n_reals,
            m->n_integers, m->n_booleans, m->n_strings);
+    printf("\"n_int64s\": %d, \"n_uint64s\": %d, \"n_binaries\": %d, \"fmi3_only\": %s,\n", m->n_int64s,
+           m->n_uint64s, m->n_binaries, m->fmi3_only ? "true" : "false");
+    printf("\"string_capacity\": %d, \"binary_capacity\": %d,\n", STRING_CAPACITY, BINARY_CAPACITY);
     printf("\"n_states\": %d,\n\"state_slots\": ", m->n_states);
     json_ints(m->state_slots, m->n_states);
     printf(",\n\"derivative_slots\": ");
@@ -98,6 +103,12 @@ int main(void) {
         json_string(v->description);
         printf(", \"derivative_of\": %d, \"dependencies\": ", v->derivative_of);
         json_string(v->dependencies);
+        printf(", \"dimensions\": ");
+        {
+            int n = 0;
+            while (m->dimensions && n < MAX_DIMENSIONS && m->dimensions[i][n] > 0) n++;
+            json_ints(m->dimensions ? m->dimensions[i] : NULL, n);
+        }
         printf("}%s\n", i + 1 < m->n_variables ? "," : "");
     }
     printf("]\n}\n");

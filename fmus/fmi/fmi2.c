@@ -1,4 +1,5 @@
-/* fmi2.c: every FMI 2.0 function (Co-Simulation and Model Exchange in one binary).
+/* fmi2.c: every FMI 2.0 function (Co-Simulation and Model Exchange in one binary), a thin
+ * interface over the shared layer (instance.c, step.c, derivative.c, log.c).
  *
  * Argument errors (unknown value reference, wrong type, value out of range, a
  * call in the wrong state) return fmi2Error and leave the instance unchanged,
@@ -8,35 +9,29 @@
  * fmi2FreeInstance are allowed.
  */
 #include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "fmi2Functions.h"
 #include "instance.h"
-
-#define S_INST MASK(ST_INSTANTIATED)
-#define S_INIT MASK(ST_INITIALIZATION)
-#define S_STEP MASK(ST_STEP_COMPLETE)
-#define S_EVENT MASK(ST_EVENT)
-#define S_CONT MASK(ST_CONTINUOUS_TIME)
-#define S_TERM MASK(ST_TERMINATED)
-#define S_ERR MASK(ST_ERROR)
-
-#define S_SET (S_INST | S_INIT | S_STEP | S_EVENT | S_CONT)
-#define S_GET (S_INIT | S_STEP | S_EVENT | S_CONT | S_TERM | S_ERR)
 
 #define GUARD(function, mask)                                         \
     Instance *inst = (Instance *)c;                                   \
     if (!inst) return fmi2Error;                                      \
     if (!check_state(inst, function, mask)) return fmi2Error
 
-/* A captured FMU state: a copy of the instance block. */
-typedef struct {
-    size_t size;
-    unsigned char data[];
-} Snapshot;
-
-static const char SERIAL_MAGIC[8] = {'M', 'F', 'M', 'U', 'S', 'T', '0', '1'};
+/* The layer's messages through the FMI 2.0 logger.  It treats the message as a printf format,
+ * but loggers without varargs support show it verbatim: send it as the format, '%' doubled. */
+static void emit(const Instance *inst, LayerStatus status, const char *category, const char *message) {
+    char escaped[2048];
+    size_t k = 0;
+    for (const char *p = message; *p && k + 2 < sizeof escaped; p++) {
+        if (*p == '%') escaped[k++] = '%';
+        escaped[k++] = *p;
+    }
+    escaped[k] = '\0';
+    ((fmi2CallbackLogger)inst->logger)(inst->env, inst->name, (fmi2Status)status, category, escaped);
+}
 
 /* ---------------------------------------------------------------- common */
 
@@ -46,24 +41,7 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     GUARD("fmi2SetDebugLogging", ANY_STATE);
-    unsigned mask = inst->log_mask;
-    if (nCategories == 0) {
-        mask = loggingOn ? (1u << LOG_N_CATEGORIES) - 1u : 0u;
-    } else {
-        for (size_t i = 0; i < nCategories; i++) {
-            int found = -1;
-            for (int k = 0; k < LOG_N_CATEGORIES; k++)
-                if (categories[i] && strcmp(categories[i], LOG_CATEGORY_NAMES[k]) == 0) found = k;
-            if (found < 0) {
-                layer_log(inst, LOG_ERROR, "fmi2SetDebugLogging: unknown log category \"%s\"",
-                          categories[i] ? categories[i] : "(null)");
-                return fmi2Error;
-            }
-            mask = loggingOn ? (mask | (1u << found)) : (mask & ~(1u << found));
-        }
-    }
-    inst->log_mask = mask;
-    return fmi2OK;
+    return (fmi2Status)set_debug_logging(inst, "fmi2SetDebugLogging", loggingOn, nCategories, categories);
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -85,7 +63,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                    fmuGUID ? fmuGUID : "(null)", MODEL.identifier, MODEL.guid);
         return NULL;
     }
-    inst = instance_new(name, fmuType, logger, env, loggingOn);
+    inst = instance_new(name, fmuType == fmi2CoSimulation ? KIND_CO_SIMULATION : KIND_MODEL_EXCHANGE, 2, emit,
+                        (void (*)(void))logger, env, loggingOn);
     if (!inst && logger) logger(env, name, fmi2Error, "logError", "fmi2Instantiate: out of memory");
     return inst;
 }
@@ -97,40 +76,18 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     GUARD("fmi2SetupExperiment", S_INST);
     (void)toleranceDefined;
     (void)tolerance;
-    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
-        layer_log(inst, LOG_ERROR, "fmi2SetupExperiment: invalid start time %g s / stop time %g s", startTime,
-                  stopTime);
-        return fmi2Error;
-    }
-    inst->core->time = startTime;
-    return fmi2OK;
+    return setup_experiment(inst, "fmi2SetupExperiment", startTime, stopTimeDefined, stopTime) ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     GUARD("fmi2EnterInitializationMode", S_INST);
-    inst->core->state = ST_INITIALIZATION;
-    inst->core->initialized = 0;
-    mark_dirty(inst);
+    enter_initialization(inst);
     return fmi2OK;
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     GUARD("fmi2ExitInitializationMode", S_INIT);
-    const ModelDef *m = inst->model;
-    if (run_initialize(inst, "fmi2ExitInitializationMode")) {
-        inst->core->state = ST_ERROR;
-        return fmi2Error;
-    }
-    inst->core->state = inst->type == fmi2CoSimulation ? ST_STEP_COMPLETE : ST_EVENT;
-    solver_reset(inst->memory, m->n_states);
-    mark_dirty(inst);
-    if (refresh(inst, 0, "fmi2ExitInitializationMode") || check_finite(inst, "fmi2ExitInitializationMode")) {
-        inst->core->state = ST_ERROR;
-        return fmi2Error;
-    }
-    layer_log(inst, LOG_INFO, "initialized at t = %g s: %d continuous states, solver %d, internal_step %g s",
-              inst->core->time, m->n_states, inst->integers[I_SOLVER], inst->reals[R_INTERNAL_STEP]);
-    return fmi2OK;
+    return (fmi2Status)exit_initialization(inst, "fmi2ExitInitializationMode");
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
@@ -147,98 +104,45 @@ fmi2Status fmi2Reset(fmi2Component c) {
 
 /* ------------------------------------------------------- get/set values */
 
-/* The variable behind vr if it exists and has one of the wanted types; else logs and NULL. */
-static const Variable *lookup(Instance *inst, const char *function, fmi2ValueReference vr, unsigned types) {
-    const Variable *v = variable_of(inst, vr);
-    static const char *const type_names[] = {"Real", "Integer", "Boolean", "String", "Enumeration"};
-    if (!v) {
-        layer_log(inst, LOG_ERROR, "%s: value reference %u out of range (model %s has %d variables)", function,
-                  (unsigned)vr, inst->model->identifier, inst->model->n_variables);
-        return NULL;
-    }
-    if (!(types & (1u << v->type))) {
-        layer_log(inst, LOG_ERROR, "%s: variable %s (value reference %u) is of type %s", function, v->name,
-                  (unsigned)vr, type_names[v->type]);
-        return NULL;
-    }
-    return v;
-}
+#define T_MASK_REAL TYPE_MASK(T_REAL)
+#define T_MASK_INTEGER (TYPE_MASK(T_INTEGER) | TYPE_MASK(T_SOLVER))
+#define T_MASK_BOOLEAN TYPE_MASK(T_BOOLEAN)
+#define T_MASK_STRING TYPE_MASK(T_STRING)
 
-#define T_MASK_REAL (1u << T_REAL)
-#define T_MASK_INTEGER ((1u << T_INTEGER) | (1u << T_SOLVER))
-#define T_MASK_BOOLEAN (1u << T_BOOLEAN)
-#define T_MASK_STRING (1u << T_STRING)
-
-static int is_derivative(const Variable *v) { return v->derivative_of != NO_STATE; }
-
-/* Check that every vr can be set to value (NULL: non-numeric type); logs the first problem. */
-static int check_settable(Instance *inst, const char *function, const fmi2ValueReference vr[], size_t nvr,
-                          unsigned types, const double *values) {
-    for (size_t i = 0; i < nvr; i++) {
-        const Variable *v = lookup(inst, function, vr[i], types);
-        const char *why;
-        if (!v) return 0;
-        why = not_settable_reason(inst, v);
-        if (why) {
-            layer_log(inst, LOG_ERROR, "%s: variable %s cannot be set in state %s: %s", function, v->name,
-                      state_name(inst->core->state), why);
-            return 0;
-        }
-        if (values && !isfinite(values[i])) {
-            layer_log(inst, LOG_ERROR, "%s: variable %s: value %g is not finite", function, v->name, values[i]);
-            return 0;
-        }
-        if (values && (values[i] < v->min || values[i] > v->max)) {
-            layer_log(inst, LOG_ERROR, "%s: variable %s: value %.17g outside [%g, %g]", function, v->name,
-                      values[i], v->min, v->max);
-            return 0;
-        }
-    }
-    return 1;
-}
+static double real_at(const void *values, size_t j) { return ((const fmi2Real *)values)[j]; }
+static double integer_at(const void *values, size_t j) { return ((const fmi2Integer *)values)[j]; }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     GUARD("fmi2GetReal", S_GET);
-    int need_derivatives = 0;
-    for (size_t i = 0; i < nvr; i++) {
-        const Variable *v = lookup(inst, "fmi2GetReal", vr[i], T_MASK_REAL);
-        if (!v) return fmi2Error;
-        need_derivatives |= is_derivative(v);
-    }
-    if (refresh(inst, need_derivatives, "fmi2GetReal")) return fmi2Error;
+    if (!prepare_get(inst, "fmi2GetReal", vr, nvr, T_MASK_REAL, nvr)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->reals[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
     GUARD("fmi2GetInteger", S_GET);
-    for (size_t i = 0; i < nvr; i++)
-        if (!lookup(inst, "fmi2GetInteger", vr[i], T_MASK_INTEGER)) return fmi2Error;
-    if (refresh(inst, 0, "fmi2GetInteger")) return fmi2Error;
+    if (!prepare_get(inst, "fmi2GetInteger", vr, nvr, T_MASK_INTEGER, nvr)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->integers[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
     GUARD("fmi2GetBoolean", S_GET);
-    for (size_t i = 0; i < nvr; i++)
-        if (!lookup(inst, "fmi2GetBoolean", vr[i], T_MASK_BOOLEAN)) return fmi2Error;
-    if (refresh(inst, 0, "fmi2GetBoolean")) return fmi2Error;
+    if (!prepare_get(inst, "fmi2GetBoolean", vr, nvr, T_MASK_BOOLEAN, nvr)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = inst->booleans[inst->model->variables[vr[i]].slot];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
     GUARD("fmi2GetString", S_GET);
-    for (size_t i = 0; i < nvr; i++)
-        if (!lookup(inst, "fmi2GetString", vr[i], T_MASK_STRING)) return fmi2Error;
+    if (!check_access(inst, "fmi2GetString", vr, nvr, T_MASK_STRING, nvr, 0, NULL, NULL)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) value[i] = model_string(inst, inst->model->variables[vr[i]].slot);
     return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
     GUARD("fmi2SetReal", S_SET);
-    if (!check_settable(inst, "fmi2SetReal", vr, nvr, T_MASK_REAL, value)) return fmi2Error;
+    if (!check_access(inst, "fmi2SetReal", vr, nvr, T_MASK_REAL, nvr, 1, real_at, value)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) inst->reals[inst->model->variables[vr[i]].slot] = value[i];
     note_set(inst, vr, nvr);
     return fmi2OK;
@@ -246,10 +150,8 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
     GUARD("fmi2SetInteger", S_SET);
-    for (size_t i = 0; i < nvr; i++) {
-        double d = value[i];
-        if (!check_settable(inst, "fmi2SetInteger", vr + i, 1, T_MASK_INTEGER, &d)) return fmi2Error;
-    }
+    if (!check_access(inst, "fmi2SetInteger", vr, nvr, T_MASK_INTEGER, nvr, 1, integer_at, value))
+        return fmi2Error;
     for (size_t i = 0; i < nvr; i++) inst->integers[inst->model->variables[vr[i]].slot] = value[i];
     note_set(inst, vr, nvr);
     return fmi2OK;
@@ -257,7 +159,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
     GUARD("fmi2SetBoolean", S_SET);
-    if (!check_settable(inst, "fmi2SetBoolean", vr, nvr, T_MASK_BOOLEAN, NULL)) return fmi2Error;
+    if (!check_access(inst, "fmi2SetBoolean", vr, nvr, T_MASK_BOOLEAN, nvr, 1, NULL, NULL)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) inst->booleans[inst->model->variables[vr[i]].slot] = value[i] != fmi2False;
     note_set(inst, vr, nvr);
     return fmi2OK;
@@ -265,7 +167,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
     GUARD("fmi2SetString", S_SET);
-    if (!check_settable(inst, "fmi2SetString", vr, nvr, T_MASK_STRING, NULL)) return fmi2Error;
+    if (!check_access(inst, "fmi2SetString", vr, nvr, T_MASK_STRING, nvr, 1, NULL, NULL)) return fmi2Error;
     for (size_t i = 0; i < nvr; i++) {
         if (!value[i] || strlen(value[i]) >= STRING_CAPACITY) {
             layer_log(inst, LOG_ERROR, "fmi2SetString: variable %s: value is NULL or longer than %d bytes",
@@ -273,8 +175,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
             return fmi2Error;
         }
     }
-    for (size_t i = 0; i < nvr; i++)
-        strcpy((char *)model_string(inst, inst->model->variables[vr[i]].slot), value[i]);
+    for (size_t i = 0; i < nvr; i++) model_set_string(inst, inst->model->variables[vr[i]].slot, value[i]);
     note_set(inst, vr, nvr);
     return fmi2OK;
 }
@@ -283,119 +184,44 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     GUARD("fmi2GetFMUstate", ANY_STATE);
-    Snapshot *s = FMUstate ? (Snapshot *)*FMUstate : NULL;
-    if (!FMUstate) return fmi2Error;
-    if (s && s->size != inst->block_size) {
-        layer_log(inst, LOG_ERROR, "fmi2GetFMUstate: the given FMU state belongs to another model");
-        return fmi2Error;
-    }
-    if (!s) s = malloc(sizeof(Snapshot) + inst->block_size);
-    if (!s) {
-        layer_log(inst, LOG_ERROR, "fmi2GetFMUstate: out of memory");
-        return fmi2Error;
-    }
-    s->size = inst->block_size;
-    memcpy(s->data, inst->block, inst->block_size);
-    *FMUstate = s;
-    return fmi2OK;
+    return (fmi2Status)state_get(inst, "fmi2GetFMUstate", FMUstate);
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     GUARD("fmi2SetFMUstate", ANY_STATE);
-    const Snapshot *s = FMUstate;
-    if (!s || s->size != inst->block_size) {
-        layer_log(inst, LOG_ERROR, "fmi2SetFMUstate: FMU state is NULL or of another model (%zu bytes, expected %zu)",
-                  s ? s->size : 0, inst->block_size);
-        return fmi2Error;
-    }
-    memcpy(inst->block, s->data, inst->block_size);
-    return fmi2OK;
+    return (fmi2Status)state_set(inst, "fmi2SetFMUstate", FMUstate);
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     GUARD("fmi2FreeFMUstate", ANY_STATE);
-    if (FMUstate) {
-        free(*FMUstate);
-        *FMUstate = NULL;
-    }
+    state_free(FMUstate);
     return fmi2OK;
 }
 
-/* Serialized form: magic, block size, GUID length, GUID, block. */
-static size_t serial_header_size(void) { return sizeof SERIAL_MAGIC + 2 * sizeof(uint64_t) + strlen(MODEL.guid); }
-
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     GUARD("fmi2SerializedFMUstateSize", ANY_STATE);
-    const Snapshot *s = FMUstate;
-    if (!s || !size) return fmi2Error;
-    *size = serial_header_size() + s->size;
-    return fmi2OK;
+    return (fmi2Status)state_serialized_size(inst, FMUstate, size);
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
     GUARD("fmi2SerializeFMUstate", ANY_STATE);
-    const Snapshot *s = FMUstate;
-    uint64_t block = s ? s->size : 0, guid = strlen(MODEL.guid);
-    unsigned char *p = (unsigned char *)serializedState;
-    if (!s || !p || size != serial_header_size() + s->size) {
-        layer_log(inst, LOG_ERROR, "fmi2SerializeFMUstate: buffer of %zu bytes, expected %zu", size,
-                  s ? serial_header_size() + s->size : 0);
-        return fmi2Error;
-    }
-    memcpy(p, SERIAL_MAGIC, sizeof SERIAL_MAGIC), p += sizeof SERIAL_MAGIC;
-    memcpy(p, &block, sizeof block), p += sizeof block;
-    memcpy(p, &guid, sizeof guid), p += sizeof guid;
-    memcpy(p, MODEL.guid, guid), p += guid;
-    memcpy(p, s->data, s->size);
-    return fmi2OK;
+    return (fmi2Status)state_serialize(inst, "fmi2SerializeFMUstate", FMUstate, (unsigned char *)serializedState,
+                                       size);
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
     GUARD("fmi2DeSerializeFMUstate", ANY_STATE);
-    const unsigned char *p = (const unsigned char *)serializedState;
-    size_t header = serial_header_size();
-    uint64_t block = 0, guid = 0;
-    Snapshot *s;
-    if (!p || !FMUstate || size < header || memcmp(p, SERIAL_MAGIC, sizeof SERIAL_MAGIC) != 0) {
-        layer_log(inst, LOG_ERROR, "fmi2DeSerializeFMUstate: not a serialized state of this layer (%zu bytes)",
-                  size);
-        return fmi2Error;
-    }
-    memcpy(&block, p + sizeof SERIAL_MAGIC, sizeof block);
-    memcpy(&guid, p + sizeof SERIAL_MAGIC + sizeof block, sizeof guid);
-    if (guid != strlen(MODEL.guid) || memcmp(p + header - guid, MODEL.guid, guid) != 0) {
-        layer_log(inst, LOG_ERROR, "fmi2DeSerializeFMUstate: state of a foreign model (GUID differs from %s's)",
-                  MODEL.identifier);
-        return fmi2Error;
-    }
-    if (block != inst->block_size || size != header + block) {
-        layer_log(inst, LOG_ERROR,
-                  "fmi2DeSerializeFMUstate: truncated or inconsistent buffer: %zu bytes, expected %zu",
-                  size, header + inst->block_size);
-        return fmi2Error;
-    }
-    s = *FMUstate;
-    if (s && s->size != inst->block_size) {
-        free(s);
-        s = NULL;
-    }
-    if (!s) s = malloc(sizeof(Snapshot) + inst->block_size);
-    if (!s) {
-        layer_log(inst, LOG_ERROR, "fmi2DeSerializeFMUstate: out of memory");
-        return fmi2Error;
-    }
-    s->size = inst->block_size;
-    memcpy(s->data, p + header, inst->block_size);
-    *FMUstate = s;
-    return fmi2OK;
+    return (fmi2Status)state_deserialize(inst, "fmi2DeSerializeFMUstate", (const unsigned char *)serializedState,
+                                         size, FMUstate);
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
     GUARD("fmi2GetDirectionalDerivative", S_INIT | S_STEP | S_EVENT | S_CONT | S_TERM);
-    return directional_derivative(inst, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown);
+    return (fmi2Status)directional_derivative(inst, "fmi2GetDirectionalDerivative", vUnknown_ref, nUnknown,
+                                              vKnown_ref, nKnown, dvKnown, dvUnknown);
 }
 
 /* --------------------------------------------------------- co-simulation */
@@ -403,7 +229,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
     GUARD("fmi2SetRealInputDerivatives", S_INST | S_INIT | S_STEP);
-    if (inst->type != fmi2CoSimulation) {
+    if (inst->kind != KIND_CO_SIMULATION) {
         layer_log(inst, LOG_ERROR, "fmi2SetRealInputDerivatives: only for Co-Simulation");
         return fmi2Error;
     }
@@ -443,11 +269,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     GUARD("fmi2DoStep", S_STEP);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (inst->type != fmi2CoSimulation) {
+    if (inst->kind != KIND_CO_SIMULATION) {
         layer_log(inst, LOG_ERROR, "fmi2DoStep: instance was created for Model Exchange");
         return fmi2Error;
     }
-    return do_step(inst, currentCommunicationPoint, communicationStepSize);
+    return (fmi2Status)do_step(inst, "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {

@@ -1,29 +1,39 @@
-/* instance.h: the instance of the shared FMI 2.0 layer (internal to fmus/fmi).
+/* instance.h: the instance of the shared FMI layer (internal to fmus/fmi).
  *
- * Everything that must survive fmi2GetFMUstate/fmi2SetFMUstate lives in ONE
- * contiguous block (`block`): the Core header, the real/integer/boolean/string
- * slots (the continuous states among the reals), the solver memory and the
- * input polynomials.  Offsets are computed from the ModelDef counts at
- * instantiation, so a state copy is a memcpy and serialization writes the
- * block behind a small header.  Scratch buffers (the state vector, solver
- * work, finite differences, what one doStep remembers) live outside the block
- * and are never part of the state.
+ * The layer itself knows no FMI version: fmi2.c (FMI 2.0) and fmi3.c (FMI 3.0
+ * Co-Simulation) are thin interfaces over it, and an FMU is built with one of them.
+ * They share the instance, its state machine and settability rules, get/set checks,
+ * FMU state copies and serialization (instance.c), the step (step.c), directional
+ * derivatives (derivative.c) and logging (log.c).  Logging reaches the importer
+ * through `emit`, which the interface file sets.
+ *
+ * Everything that must survive GetFMUstate/SetFMUstate lives in ONE contiguous
+ * block (`block`): the Core header, the real/integer/boolean/string slots (the
+ * continuous states among the reals), the solver memory, the input polynomials and
+ * the FMI 3.0 int64/uint64/binary slots.  Offsets are computed from the ModelDef
+ * counts at instantiation, so a state copy is a memcpy and serialization writes the
+ * block behind a small header.  Scratch buffers (the state vector, solver work,
+ * finite differences, what one doStep remembers) live outside the block and are
+ * never part of the state.
  */
 #ifndef INSTANCE_H
 #define INSTANCE_H
 
-#include "fmi2Functions.h"
 #include "model.h"
 #include "solvers.h"
 
-#define STRING_CAPACITY 256   /* bytes per String slot, terminating zero included */
-#define MAX_INPUT_ORDER 3     /* highest order accepted by fmi2SetRealInputDerivatives */
+#define MAX_INPUT_ORDER 3 /* highest order accepted by fmi2SetRealInputDerivatives */
 
-/* FMI 2.0 states of an instance (CS and ME share one enumeration). */
+/* Status of a layer call: the order of fmi2Status and fmi3Status, so the interfaces cast it. */
+typedef enum { LAYER_OK, LAYER_WARNING, LAYER_DISCARD, LAYER_ERROR, LAYER_FATAL } LayerStatus;
+
+typedef enum { KIND_CO_SIMULATION, KIND_MODEL_EXCHANGE } InstanceKind;
+
+/* States of an instance (FMI 2.0 CS and ME, FMI 3.0 CS share one enumeration and one rule set). */
 typedef enum {
     ST_INSTANTIATED,
     ST_INITIALIZATION,
-    ST_STEP_COMPLETE,     /* CS */
+    ST_STEP_COMPLETE,     /* CS (FMI 3.0: Step Mode) */
     ST_EVENT,             /* ME */
     ST_CONTINUOUS_TIME,   /* ME */
     ST_TERMINATED,
@@ -34,6 +44,20 @@ typedef enum {
 #define MASK(s) (1u << (s))
 #define ANY_STATE ((1u << ST_COUNT) - 1u)
 
+#define S_INST MASK(ST_INSTANTIATED)
+#define S_INIT MASK(ST_INITIALIZATION)
+#define S_STEP MASK(ST_STEP_COMPLETE)
+#define S_EVENT MASK(ST_EVENT)
+#define S_CONT MASK(ST_CONTINUOUS_TIME)
+#define S_TERM MASK(ST_TERMINATED)
+#define S_ERR MASK(ST_ERROR)
+
+#define S_SET (S_INST | S_INIT | S_STEP | S_EVENT | S_CONT)         /* set values */
+#define S_GET (S_INIT | S_STEP | S_EVENT | S_CONT | S_TERM | S_ERR) /* get values */
+
+/* Masks of variable types (1u << VarType) for get/set checks. */
+#define TYPE_MASK(t) (1u << (t))
+
 /* Head of the persistent block. */
 typedef struct {
     double time;            /* current time [s] */
@@ -42,16 +66,27 @@ typedef struct {
     int derivatives_dirty;  /* ... since the derivative slots were written */
     int have_input_derivatives; /* some fmi2SetRealInputDerivatives since the last doStep */
     int initialized;        /* Initialization Mode: MODEL.initialize ran and only inputs changed since */
-    int fatal;              /* the model reported MODEL_FATAL: the step ends with fmi2Fatal */
-    int terminate;          /* the model reported MODEL_TERMINATE: the step ends with fmi2Discard */
+    int fatal;              /* the model reported MODEL_FATAL: the step ends with Fatal */
+    int terminate;          /* the model reported MODEL_TERMINATE: the simulation ends after this step */
 } Core;
+
+/* A Binary slot of the block. */
+typedef struct {
+    uint64_t size;
+    unsigned char data[BINARY_CAPACITY];
+} BinarySlot;
+
+/* Hands one message to the importer's logger; the interface file knows its signature. */
+typedef void (*EmitFn)(const Instance *inst, LayerStatus status, const char *category, const char *message);
 
 struct Instance {
     const ModelDef *model;
     char *name;
-    fmi2Type type;
-    fmi2CallbackLogger logger;
-    fmi2ComponentEnvironment env;
+    InstanceKind kind;
+    int fmi_version;         /* 2 or 3: the interface that created the instance (names in messages) */
+    EmitFn emit;
+    void (*logger)(void);    /* the importer's logger, cast back to its own type by emit */
+    void *env;               /* the importer's environment pointer, passed to the logger */
     unsigned log_mask;       /* bit per category, see log.c */
     char model_error[512];   /* the model's last logError message, repeated in the layer's failure report */
     char error_suffix[512];  /* returned by model_error_suffix */
@@ -66,13 +101,16 @@ struct Instance {
     int *integers;
     int *booleans;
     char *strings;           /* n_strings x STRING_CAPACITY */
+    int64_t *int64s;
+    uint64_t *uint64s;
+    BinarySlot *binaries;
 
     /* constant tables derived from MODEL */
-    int n_real_inputs;
-    int *real_input_slot;    /* Real slot of each Real input */
-    int *input_index;        /* per value reference: index into the Real inputs or -1 */
+    int n_real_inputs;       /* elements of the Real (Float64) inputs */
+    int *real_input_slot;    /* Real slot of each of them */
+    int *input_index;        /* per value reference: index of its first element among them, or -1 */
     int n_checked;
-    int *checked_vr;         /* Real states and outputs, checked for finiteness after each step */
+    int *checked_vr;         /* Real/Float32 states and outputs, checked for finiteness after each step */
 
     /* scratch, not state */
     SolverWork *work;
@@ -97,28 +135,49 @@ void layer_log(Instance *inst, int category, const char *fmt, ...)
     ;
 /* ": <model's last error>" (or "") for appending to a failure report; clears it. */
 const char *model_error_suffix(Instance *inst);
-const char *state_name(int state);
+/* The name of a state as the instance's FMI version calls it. */
+const char *state_name(const Instance *inst, int state);
 /* 1 if the instance may make this call in its current state, else logs and returns 0. */
 int check_state(Instance *inst, const char *function, unsigned allowed_mask);
+/* SetDebugLogging: all categories (n == 0) or the named ones on or off. */
+LayerStatus set_debug_logging(Instance *inst, const char *function, int on, size_t n,
+                              const char *const categories[]);
 
 /* instance.c */
-Instance *instance_new(const char *name, fmi2Type type, fmi2CallbackLogger logger, fmi2ComponentEnvironment env,
-                       int logging_on);
+Instance *instance_new(const char *name, InstanceKind kind, int fmi_version, EmitFn emit, void (*logger)(void),
+                       void *env, int logging_on);
 void instance_free(Instance *inst);
 void instance_reset(Instance *inst); /* start values, time 0, state Instantiated */
-const Variable *variable_of(const Instance *inst, fmi2ValueReference vr);
+/* The variable behind vr, or NULL.  FMI 3.0 instances also know `time`, the independent
+ * variable, at vr = n_variables. */
+const Variable *variable_of(const Instance *inst, unsigned vr);
+/* Number of values of the variable: the product of its dimensions, 1 for a scalar. */
+size_t variable_size(const Instance *inst, unsigned vr);
+const char *type_name(const Instance *inst, int type);
 Initial effective_initial(const Variable *v);
 /* NULL if `v` may be set in the current state, else the reason. */
 const char *not_settable_reason(const Instance *inst, const Variable *v);
+/* The variable behind vr if it exists and its type is in `types`; else logs and returns NULL. */
+const Variable *lookup(Instance *inst, const char *function, unsigned vr, unsigned types);
+/* Checks a get (set = 0) or set (set = 1) of the variables vr[0..nvr): each exists and has a
+ * type in `types`, their values number n_values, and for a set each may be set in the current
+ * state and each value (value_at(values, j) as a double; value_at NULL for non-numbers) is
+ * finite and inside [min, max].  Logs the first problem and returns 0; 1 if there is none. */
+int check_access(Instance *inst, const char *function, const unsigned vr[], size_t nvr, unsigned types,
+                 size_t n_values, int set, double (*value_at)(const void *values, size_t j), const void *values);
+/* check_access for a get, then refresh (derivatives too when a derivative is asked for). */
+int prepare_get(Instance *inst, const char *function, const unsigned vr[], size_t nvr, unsigned types,
+                size_t n_values);
 void gather_states(Instance *inst, double *x);       /* state slots -> x */
 void scatter_states(Instance *inst, const double *x); /* x -> state slots */
 void mark_dirty(Instance *inst);
-/* After fmi2SetXXX of vr[0..nvr): outputs are stale; in Initialization Mode a changed
+/* After SetXXX of vr[0..nvr): outputs are stale; in Initialization Mode a changed
  * parameter or start value also means MODEL.initialize must run again. */
-void note_set(Instance *inst, const fmi2ValueReference vr[], size_t nvr);
+void note_set(Instance *inst, const unsigned vr[], size_t nvr);
 /* MODEL.initialize unless Core.initialized says it already ran; 0 on success (logs on failure). */
 int run_initialize(Instance *inst, const char *function);
-/* MODEL.outputs at the current time and states; 0 on success (no logging). */
+/* MODEL.outputs at the current time and states; 0 on success (no logging).  MODEL_TERMINATE
+ * counts as success and sets Core.terminate. */
 int eval_outputs(Instance *inst);
 /* MODEL.derivatives at the current time and states, into the derivative slots; 0 on success
  * (no logging). */
@@ -132,15 +191,32 @@ int refresh(Instance *inst, int derivatives, const char *function);
 /* 0 if every state and Real output is finite, else logs the first bad one and returns 1. */
 int check_finite(Instance *inst, const char *function);
 
+/* The state machine's transitions, shared by the interfaces. */
+/* Start (and optional stop) time of the experiment; 0 and logs if invalid. */
+int setup_experiment(Instance *inst, const char *function, double start, int stop_defined, double stop);
+void enter_initialization(Instance *inst);
+/* Runs MODEL.initialize, moves to StepComplete (CS) or EventMode (ME) and computes the outputs. */
+LayerStatus exit_initialization(Instance *inst, const char *function);
+
+/* FMU state: copies of the block (GetFMUstate, SetFMUstate, FreeFMUstate, serialization). */
+LayerStatus state_get(Instance *inst, const char *function, void **state);
+LayerStatus state_set(Instance *inst, const char *function, const void *state);
+void state_free(void **state);
+LayerStatus state_serialized_size(Instance *inst, const void *state, size_t *size);
+LayerStatus state_serialize(Instance *inst, const char *function, const void *state, unsigned char *buffer,
+                            size_t size);
+LayerStatus state_deserialize(Instance *inst, const char *function, const unsigned char *buffer, size_t size,
+                              void **state);
+
 /* step.c */
-fmi2Status do_step(Instance *inst, double t, double H);
+LayerStatus do_step(Instance *inst, const char *function, double t, double H);
 /* Model rhs/Jacobian with the input polynomials evaluated at time t (solver callbacks). */
 int rhs_with_inputs(void *ctx, double t, const double *x, double *dx);
 int jac_with_inputs(void *ctx, double t, const double *x, double *J);
 
-/* derivative.c */
-fmi2Status directional_derivative(Instance *inst, const fmi2ValueReference unknown[], size_t n_unknown,
-                                  const fmi2ValueReference known[], size_t n_known, const double seed[],
-                                  double result[]);
+/* derivative.c: d(unknowns)/d(knowns) * seed for scalar Real variables. */
+LayerStatus directional_derivative(Instance *inst, const char *function, const unsigned unknown[],
+                                   size_t n_unknown, const unsigned known[], size_t n_known, const double seed[],
+                                   double result[]);
 
 #endif

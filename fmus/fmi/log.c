@@ -1,4 +1,5 @@
-/* log.c: logging through the FMI callback and the state-machine guard. */
+/* log.c: logging through the importer's callback (via the interface's emit), the
+ * state-machine guard and SetDebugLogging. */
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -10,23 +11,15 @@ const char *const LOG_CATEGORY_NAMES[LOG_N_CATEGORIES] = {"logError", "logWarnin
 const char *const LOG_CATEGORY_DESCRIPTIONS[LOG_N_CATEGORIES] = {
     "errors: failed calls, bad arguments, non-finite results", "warnings", "information", "debugging details"};
 
-static const fmi2Status CATEGORY_STATUS[LOG_N_CATEGORIES] = {fmi2Error, fmi2Warning, fmi2OK, fmi2OK};
+static const LayerStatus CATEGORY_STATUS[LOG_N_CATEGORIES] = {LAYER_ERROR, LAYER_WARNING, LAYER_OK, LAYER_OK};
 
 static void vlog(Instance *inst, int category, const char *fmt, va_list ap) {
-    char message[1024], escaped[2048];
-    size_t k = 0;
-    if (!inst || !inst->logger) return;
+    char message[1024];
+    if (!inst || !inst->logger || !inst->emit) return;
     /* Errors always reach the logger; other categories only when enabled. */
     if (category != LOG_ERROR && !(inst->log_mask & (1u << category))) return;
     vsnprintf(message, sizeof message, fmt, ap);
-    /* The logger treats the message as a printf format, but loggers without
-     * varargs support show it verbatim: send it as the format, '%' doubled. */
-    for (const char *p = message; *p && k + 2 < sizeof escaped; p++) {
-        if (*p == '%') escaped[k++] = '%';
-        escaped[k++] = *p;
-    }
-    escaped[k] = '\0';
-    inst->logger(inst->env, inst->name, CATEGORY_STATUS[category], LOG_CATEGORY_NAMES[category], escaped);
+    inst->emit(inst, CATEGORY_STATUS[category], LOG_CATEGORY_NAMES[category], message);
 }
 
 void layer_log(Instance *inst, int category, const char *fmt, ...) {
@@ -58,15 +51,38 @@ const char *model_error_suffix(Instance *inst) {
     return inst->error_suffix;
 }
 
-const char *state_name(int state) {
+const char *state_name(const Instance *inst, int state) {
     static const char *const names[ST_COUNT] = {
         "Instantiated", "InitializationMode", "StepComplete", "EventMode", "ContinuousTimeMode",
         "Terminated",   "Error"};
+    if (state == ST_STEP_COMPLETE && inst->fmi_version == 3) return "StepMode";
     return (state >= 0 && state < ST_COUNT) ? names[state] : "unknown";
 }
 
 int check_state(Instance *inst, const char *function, unsigned allowed_mask) {
     if (allowed_mask & MASK(inst->core->state)) return 1;
-    layer_log(inst, LOG_ERROR, "%s: not allowed in state %s", function, state_name(inst->core->state));
+    layer_log(inst, LOG_ERROR, "%s: not allowed in state %s", function, state_name(inst, inst->core->state));
     return 0;
+}
+
+LayerStatus set_debug_logging(Instance *inst, const char *function, int on, size_t n,
+                              const char *const categories[]) {
+    unsigned mask = inst->log_mask;
+    if (n == 0) {
+        mask = on ? (1u << LOG_N_CATEGORIES) - 1u : 0u;
+    } else {
+        for (size_t i = 0; i < n; i++) {
+            int found = -1;
+            for (int k = 0; k < LOG_N_CATEGORIES; k++)
+                if (categories[i] && strcmp(categories[i], LOG_CATEGORY_NAMES[k]) == 0) found = k;
+            if (found < 0) {
+                layer_log(inst, LOG_ERROR, "%s: unknown log category \"%s\"", function,
+                          categories[i] ? categories[i] : "(null)");
+                return LAYER_ERROR;
+            }
+            mask = on ? (mask | (1u << found)) : (mask & ~(1u << found));
+        }
+    }
+    inst->log_mask = mask;
+    return LAYER_OK;
 }

@@ -1,29 +1,59 @@
-/* model.h: the contract between the shared FMI 2.0 layer (fmus/fmi) and one model.
+/* model.h: the contract between the shared FMI layer (fmus/fmi: FMI 2.0, and FMI 3.0
+ * Co-Simulation) and one model.
  *
  * A model is one C file (fmus/<name>/model.c) that defines `const ModelDef MODEL`:
  * its variable table and its equations.  It never touches FMI state handling.
  *
- * Storage: every variable lives in a slot of one of four arrays of the instance
- * (reals, integers, booleans, strings).  The value reference of a variable is its
- * position in the variable table.  Slot 0 of the reals and of the integers belongs
- * to the shared layer (internal_step, solver); models number their own slots from
- * R_MODEL_START / I_MODEL_START.  Anything a model must remember between calls
- * (e.g. a Newton warm start) goes into a local real slot, so that FMU state
- * get/set/serialize copies it too.
+ * Storage: every variable lives in a slot of one of the arrays of the instance
+ * (reals, integers, booleans, strings; for FMI 3.0 types also int64s, uint64s,
+ * binaries).  The value reference of a variable is its position in the variable
+ * table (FMI 3.0: unique across all types, as the standard requires).  Slot 0 of
+ * the reals and of the integers belongs to the shared layer (internal_step, solver);
+ * models number their own slots from R_MODEL_START / I_MODEL_START.  An array
+ * (FMI 3.0) occupies consecutive slots from its `slot`, row major.  Anything a
+ * model must remember between calls (e.g. a Newton warm start) goes into a local
+ * real slot, so that FMU state get/set/serialize copies it too.
  */
 #ifndef MODEL_H
 #define MODEL_H
 
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
 
-typedef enum { T_REAL, T_INTEGER, T_BOOLEAN, T_STRING, T_SOLVER } VarType; /* T_SOLVER: Enumeration "Solver" */
+/* Variable types.  The first five exist in FMI 2.0 and 3.0; a table that uses any of the
+ * others (or an array) builds as FMI 3.0 only and says so with `.fmi3_only = 1`. */
+typedef enum {
+    T_REAL,    /* FMI 2.0 Real, FMI 3.0 Float64 (alias T_FLOAT64); real slot */
+    T_INTEGER, /* FMI 2.0 Integer, FMI 3.0 Int32 (alias T_INT32); integer slot (int) */
+    T_BOOLEAN, /* boolean slot (int, 0 or 1) */
+    T_STRING,  /* string slot: up to STRING_CAPACITY - 1 bytes */
+    T_SOLVER,  /* Enumeration "Solver" (values 1 .. SOLVER_COUNT); integer slot; FMI 3.0: Int64-valued */
+    /* FMI 3.0 only */
+    T_FLOAT32, /* real slot: a double holds every float exactly; the layer rounds on get */
+    T_INT8,    /* T_INT8 .. T_INT64: int64 slot (int64_t); fmi3Set<T> only passes values of the type */
+    T_UINT8,
+    T_INT16,
+    T_UINT16,
+    T_UINT32,
+    T_INT64,
+    T_UINT64,  /* uint64 slot (uint64_t) */
+    T_BINARY,  /* binary slot: up to BINARY_CAPACITY bytes; start_string gives the start as hex digits */
+    T_COUNT
+} VarType;
+#define T_FLOAT64 T_REAL
+#define T_INT32 T_INTEGER
+
+#define STRING_CAPACITY 256 /* bytes per String slot, terminating zero included */
+#define BINARY_CAPACITY 256 /* bytes per Binary slot */
+#define MAX_DIMENSIONS 3    /* dimensions of an FMI 3.0 array variable */
 typedef enum { C_PARAMETER, C_CALCULATED_PARAMETER, C_INPUT, C_OUTPUT, C_LOCAL, C_INDEPENDENT } Causality;
 typedef enum { V_CONSTANT, V_FIXED, V_TUNABLE, V_DISCRETE, V_CONTINUOUS } Variability;
 typedef enum { I_DEFAULT, I_EXACT, I_APPROX, I_CALCULATED } Initial; /* I_DEFAULT: attribute omitted */
 
-/* MODEL_ERROR: this evaluation failed (fmi2Error); MODEL_FATAL: the model cannot go on (fmi2Fatal);
- * MODEL_TERMINATE: the model ends the simulation after this step (fmi2Discard, fmi2Terminated). */
+/* MODEL_ERROR: this evaluation failed (Error); MODEL_FATAL: the model cannot go on (Fatal);
+ * MODEL_TERMINATE (from derivatives or outputs): the model ends the simulation after this step
+ * (FMI 2.0: fmi2Discard and fmi2Terminated; FMI 3.0: fmi3OK with *terminateSimulation = true). */
 typedef enum { MODEL_OK = 0, MODEL_ERROR = 1, MODEL_FATAL = 2, MODEL_TERMINATE = 3 } ModelStatus;
 
 /* Solvers of the shared core (values of the `solver` parameter). */
@@ -49,9 +79,10 @@ typedef struct {
     Variability variability;
     Initial initial;
     int slot;                 /* index into the array of this type */
-    double start;             /* start value (Real, Integer, Boolean, Solver); ignored where initial is calculated */
-    const char *start_string; /* start value of a String */
-    double min, max;          /* enforced on set (Real, Integer); use -INFINITY / INFINITY for none */
+    double start;             /* start value of numbers and Booleans (every element of an array); ignored where
+                                 initial is calculated.  64-bit integers: exact up to 2^53 */
+    const char *start_string; /* start value of a String; of a Binary: hex digits ("0a1b") */
+    double min, max;          /* enforced on set (numbers, compared as doubles); -INFINITY / INFINITY for none */
     const char *unit;         /* NULL: none */
     const char *description;
     int derivative_of;        /* Real state derivatives: value reference of the state; NO_STATE otherwise */
@@ -70,12 +101,20 @@ typedef struct {
     const Variable *variables;
     int n_variables;
     int n_reals, n_integers, n_booleans, n_strings; /* slot counts, including the layer's slot 0s */
+    int n_int64s, n_uint64s, n_binaries;            /* FMI 3.0 slot counts (0 when unused) */
+
+    /* FMI 3.0 arrays: per variable the extents of its dimensions, unused ones 0 ({3}: a vector of
+     * 3, {2, 2}: a 2x2 matrix, {0}: a scalar).  NULL: every variable is a scalar. */
+    const int (*dimensions)[MAX_DIMENSIONS];
+    /* 1: the table uses FMI 3.0 types or arrays and builds as FMI 3.0 only (write it literally,
+     * `.fmi3_only = 1`: master/fmubuild.py reads it from the source to list FMI 2.0 models). */
+    int fmi3_only;
 
     int n_states;
     const int *state_slots;      /* real slots of the continuous states, in state order */
     const int *derivative_slots; /* real slots of their derivatives, same order */
 
-    /* Called on fmi2ExitInitializationMode, after parameters and start values are set:
+    /* Called on ExitInitializationMode, after parameters and start values are set:
      * derive calculated parameters, make the initial state consistent.  May be NULL. */
     ModelStatus (*initialize)(Instance *inst);
 
@@ -88,7 +127,9 @@ typedef struct {
     ModelStatus (*jacobian)(Instance *inst, double t, const double *x, double *J);
 
     /* Write outputs and other dependent variables for time t and state x
-     * (the layer has already copied x into the state slots).  May be NULL. */
+     * (the layer has already copied x into the state slots).  May be NULL.
+     * MODEL_TERMINATE (after writing the outputs): the simulation ends at time t; in a step
+     * the layer reports it when the step that reached t completes. */
     ModelStatus (*outputs)(Instance *inst, double t, const double *x);
 } ModelDef;
 
@@ -98,7 +139,15 @@ extern const ModelDef MODEL;
 double *model_reals(Instance *inst);
 int *model_integers(Instance *inst);
 int *model_booleans(Instance *inst);
+int64_t *model_int64s(Instance *inst);
+uint64_t *model_uint64s(Instance *inst);
 const char *model_string(Instance *inst, int slot);
+/* Writes a String slot, cut to STRING_CAPACITY - 1 bytes; returns 1 if it was cut. */
+int model_set_string(Instance *inst, int slot, const char *value);
+/* The bytes of a Binary slot; *size receives their number. */
+const unsigned char *model_binary(Instance *inst, int slot, size_t *size);
+/* Writes a Binary slot; returns 1 and writes nothing if size > BINARY_CAPACITY. */
+int model_set_binary(Instance *inst, int slot, const void *data, size_t size);
 /* Log through the FMI callback; category one of "logError", "logWarning", "logInfo", "logDebug". */
 void model_log(Instance *inst, const char *category, const char *fmt, ...)
 #if defined(__GNUC__)

@@ -1,4 +1,4 @@
-/* step.c: fmi2DoStep with fixed internal steps and interpolated inputs.
+/* step.c: DoStep (FMI 2.0 and 3.0) with fixed internal steps and interpolated inputs.
  *
  * Input rule (canInterpolateInputs): fmi2SetRealInputDerivatives(vr, k, d_k)
  * gives the k-th time derivative (k = 1..3) of a Real input at the current
@@ -7,7 +7,8 @@
  *     u(s) = u0 + sum_k d_k (s - t_c)^k / k!
  * where u0 is the value the master set.  After the step the input slots get
  * back exactly u0 and all derivatives are cleared: the master sets new ones
- * for every step (no derivatives given = inputs held constant).
+ * for every step (no derivatives given = inputs held constant).  FMI 3.0 has no input
+ * derivatives: its inputs are always held constant over a step.
  */
 #include <math.h>
 #include <string.h>
@@ -44,7 +45,7 @@ int jac_with_inputs(void *ctx, double t, const double *x, double *J) {
 }
 
 /* Number of internal steps in a communication step H, or 0 (logged) if H is not a multiple. */
-static long long internal_steps(Instance *inst, double H) {
+static long long internal_steps(Instance *inst, const char *function, double H) {
     double h = inst->reals[R_INTERNAL_STEP];
     double ratio, n;
     if (!(h > 0.0)) return 1;
@@ -52,15 +53,15 @@ static long long internal_steps(Instance *inst, double H) {
     n = nearbyint(ratio);
     if (n < 1.0 || fabs(ratio - n) > 1e-9 * ratio) {
         layer_log(inst, LOG_ERROR,
-                  "fmi2DoStep: communication step %.17g s is not an integer multiple of internal_step %.17g s "
+                  "%s: communication step %.17g s is not an integer multiple of internal_step %.17g s "
                   "(ratio %.17g)",
-                  H, h, ratio);
+                  function, H, h, ratio);
         return 0;
     }
     return (long long)n;
 }
 
-fmi2Status do_step(Instance *inst, double t, double H) {
+LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
     const ModelDef *m = inst->model;
     Core *c = inst->core;
     SolverKind kind = (SolverKind)inst->integers[I_SOLVER];
@@ -69,16 +70,17 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     double h;
 
     if (!isfinite(t) || !isfinite(H) || !(H > 0.0)) {
-        layer_log(inst, LOG_ERROR, "fmi2DoStep: invalid step: t = %g s, H = %g s (need finite t and H > 0)", t, H);
-        return fmi2Error;
+        layer_log(inst, LOG_ERROR, "%s: invalid step: t = %g s, H = %g s (need finite t and H > 0)", function, t,
+                  H);
+        return LAYER_ERROR;
     }
     if (fabs(t - c->time) > 1e-9 * fmax(1.0, fabs(t))) {
-        layer_log(inst, LOG_ERROR, "fmi2DoStep: communication point %.17g s does not match the FMU time %.17g s", t,
-                  c->time);
-        return fmi2Error;
+        layer_log(inst, LOG_ERROR, "%s: communication point %.17g s does not match the FMU time %.17g s", function,
+                  t, c->time);
+        return LAYER_ERROR;
     }
-    steps = internal_steps(inst, H);
-    if (steps == 0) return fmi2Error;
+    steps = internal_steps(inst, function, H);
+    if (steps == 0) return LAYER_ERROR;
     h = H / (double)steps;
 
     for (int i = 0; i < inst->n_real_inputs; i++)
@@ -99,21 +101,22 @@ fmi2Status do_step(Instance *inst, double t, double H) {
     c->have_input_derivatives = 0;
 
     if (rc != 0) {
-        layer_log(inst, LOG_ERROR, "fmi2DoStep: %s in the step from t = %.17g s (h = %g s)%s",
+        layer_log(inst, LOG_ERROR, "%s: %s in the step from t = %.17g s (h = %g s)%s", function,
                   rc == 2 ? "singular linear system" : "model equations failed", t, h, model_error_suffix(inst));
         c->state = ST_ERROR;
-        return c->fatal ? fmi2Fatal : fmi2Error;
+        return c->fatal ? LAYER_FATAL : LAYER_ERROR;
     }
     scatter_states(inst, inst->x);
     c->time = t + H;
     mark_dirty(inst);
-    if (refresh(inst, 0, "fmi2DoStep") || check_finite(inst, "fmi2DoStep")) {
+    if (refresh(inst, 0, function) || check_finite(inst, function)) {
         c->state = ST_ERROR;
-        return fmi2Error;
+        return LAYER_ERROR;
     }
     if (c->terminate) {
-        layer_log(inst, LOG_INFO, "fmi2DoStep: the model ends the simulation at t = %.17g s", c->time);
-        return fmi2Discard; /* fmi2GetBooleanStatus(fmi2Terminated) says why */
+        layer_log(inst, LOG_INFO, "%s: the model ends the simulation at t = %.17g s", function, c->time);
+        return LAYER_DISCARD; /* FMI 2.0: fmi2GetBooleanStatus(fmi2Terminated) says why; FMI 3.0 reports
+                                 fmi3OK with terminateSimulation */
     }
-    return fmi2OK;
+    return LAYER_OK;
 }

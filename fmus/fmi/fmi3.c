@@ -1,0 +1,588 @@
+/* fmi3.c: the FMI 3.0 Co-Simulation interface of the shared layer.
+ *
+ * A thin interface like fmi2.c: the instance, its state machine and settability
+ * rules, the get/set checks, the step, FMU state copies and directional derivatives
+ * are the layer's (instance.c, step.c, derivative.c, log.c), so both versions behave
+ * alike.  What is FMI 3.0's own:
+ *   - every value type (Float32 .. UInt64, Boolean, String, Binary; Enumerations through
+ *     fmi3Get/SetInt64) and arrays: nValues counts the elements of all variables asked for;
+ *   - `time`, the independent variable, at value reference n_variables (the tables do not
+ *     list it);
+ *   - fmi3EnterInitializationMode takes the experiment's start and stop time;
+ *   - fmi3DoStep: when the model ends the simulation (MODEL_TERMINATE) the step completes
+ *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
+ *     needs no event handling;
+ *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply.
+ * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
+ * Model Exchange, Scheduled Execution, Event Mode, clocks, Configuration Mode, intermediate
+ * updates, output derivatives, adjoint derivatives, variable dependency queries.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "fmi3Functions.h"
+#include "instance.h"
+
+#define GUARD(function, mask)                                         \
+    Instance *inst = (Instance *)instance;                            \
+    if (!inst) return fmi3Error;                                      \
+    if (!check_state(inst, function, mask)) return fmi3Error
+
+/* The value reference arrays of the layer are unsigned int; fmi3ValueReference is uint32_t. */
+typedef char value_reference_is_unsigned_int[sizeof(fmi3ValueReference) == sizeof(unsigned) ? 1 : -1];
+
+static void emit(const Instance *inst, LayerStatus status, const char *category, const char *message) {
+    ((fmi3LogMessageCallback)inst->logger)(inst->env, (fmi3Status)status, category, message);
+}
+
+static fmi3Status unsupported(Instance *inst, const char *function, const char *why) {
+    if (inst) layer_log(inst, LOG_ERROR, "%s: not supported (%s)", function, why);
+    return fmi3Error;
+}
+
+/* ---------------------------------------------------------------- common */
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[]) {
+    GUARD("fmi3SetDebugLogging", ANY_STATE);
+    return (fmi3Status)set_debug_logging(inst, "fmi3SetDebugLogging", loggingOn, nCategories, categories);
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                         fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                         fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                         const fmi3ValueReference requiredIntermediateVariables[],
+                                         size_t nRequiredIntermediateVariables,
+                                         fmi3InstanceEnvironment instanceEnvironment,
+                                         fmi3LogMessageCallback logMessage,
+                                         fmi3IntermediateUpdateCallback intermediateUpdate) {
+    const char *name = instanceName ? instanceName : "";
+    char message[512];
+    Instance *inst;
+    /* No Event Mode (hasEventMode="false"): eventModeUsed changes nothing; the FMU never
+     * returns early and offers no intermediate variables. */
+    (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
+    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables, (void)intermediateUpdate;
+    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
+        snprintf(message, sizeof message,
+                 "fmi3InstantiateCoSimulation: instantiation token \"%s\" does not match %s's \"%s\"",
+                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+        return NULL;
+    }
+    inst = instance_new(name, KIND_CO_SIMULATION, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
+                        loggingOn);
+    if (!inst && logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logError", "fmi3InstantiateCoSimulation: out of memory");
+    return inst;
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logError",
+                   "fmi3InstantiateModelExchange: this FMU offers FMI 3.0 Co-Simulation only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible,
+                                               fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage,
+                                               fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
+    (void)clockUpdate, (void)lockPreemption, (void)unlockPreemption;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logError",
+                   "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");
+    return NULL;
+}
+
+void fmi3FreeInstance(fmi3Instance instance) { instance_free((Instance *)instance); }
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    GUARD("fmi3EnterInitializationMode", S_INST);
+    (void)toleranceDefined, (void)tolerance;
+    if (!setup_experiment(inst, "fmi3EnterInitializationMode", startTime, stopTimeDefined, stopTime))
+        return fmi3Error;
+    enter_initialization(inst);
+    return fmi3OK;
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    GUARD("fmi3ExitInitializationMode", S_INIT);
+    return (fmi3Status)exit_initialization(inst, "fmi3ExitInitializationMode");
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+    GUARD("fmi3EnterEventMode", ANY_STATE);
+    return unsupported(inst, "fmi3EnterEventMode", "the FMU has no Event Mode");
+}
+
+fmi3Status fmi3Terminate(fmi3Instance instance) {
+    GUARD("fmi3Terminate", S_STEP);
+    inst->core->state = ST_TERMINATED;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    GUARD("fmi3Reset", ANY_STATE);
+    instance_reset(inst);
+    return fmi3OK;
+}
+
+/* ------------------------------------------------------- get/set values */
+
+#define M(t) TYPE_MASK(t)
+
+/* Where a value of each type lives (model.h): reals for Float32/Float64, ints for Int32 and
+ * Enumerations, int64s for the other signed and the narrower unsigned integers, uint64s. */
+static double load_real(const Instance *inst, const Variable *v, size_t k) {
+    return v->causality == C_INDEPENDENT ? inst->core->time : inst->reals[(size_t)v->slot + k];
+}
+
+static void store_real(Instance *inst, const Variable *v, size_t k, double x) {
+    inst->reals[(size_t)v->slot + k] = x;
+}
+
+static int64_t load_int(const Instance *inst, const Variable *v, size_t k) {
+    size_t s = (size_t)v->slot + k;
+    return v->type == T_INTEGER || v->type == T_SOLVER ? inst->integers[s] : inst->int64s[s];
+}
+
+static void store_int(Instance *inst, const Variable *v, size_t k, int64_t x) {
+    size_t s = (size_t)v->slot + k;
+    if (v->type == T_INTEGER || v->type == T_SOLVER)
+        inst->integers[s] = (int)x; /* Int32 values, or Enumerations checked against [min, max] */
+    else
+        inst->int64s[s] = x;
+}
+
+static uint64_t load_uint64(const Instance *inst, const Variable *v, size_t k) {
+    return inst->uint64s[(size_t)v->slot + k];
+}
+
+static void store_uint64(Instance *inst, const Variable *v, size_t k, uint64_t x) {
+    inst->uint64s[(size_t)v->slot + k] = x;
+}
+
+static fmi3Boolean load_bool(const Instance *inst, const Variable *v, size_t k) {
+    return inst->booleans[(size_t)v->slot + k] != 0;
+}
+
+static void store_bool(Instance *inst, const Variable *v, size_t k, fmi3Boolean x) {
+    inst->booleans[(size_t)v->slot + k] = x ? 1 : 0;
+}
+
+/* fmi3Get<Name> and fmi3Set<Name> for values of C type `CType` in variables of the types in
+ * `mask`, read and written through load/store.  VALUE_AT: the values as doubles for the checks
+ * of a set (finite, inside [min, max]); NULL for Booleans. */
+#define ACCESSORS(Name, CType, mask, load, store, VALUE_AT)                                                   \
+    fmi3Status fmi3Get##Name(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, CType values[], \
+                             size_t nValues) {                                                                \
+        GUARD("fmi3Get" #Name, S_GET);                                                                        \
+        size_t j = 0;                                                                                         \
+        if (!prepare_get(inst, "fmi3Get" #Name, vr, nvr, mask, nValues)) return fmi3Error;                    \
+        for (size_t i = 0; i < nvr; i++) {                                                                    \
+            const Variable *v = variable_of(inst, vr[i]);                                                     \
+            size_t n = variable_size(inst, vr[i]);                                                            \
+            for (size_t k = 0; k < n; k++) values[j++] = (CType)load(inst, v, k);                             \
+        }                                                                                                     \
+        return fmi3OK;                                                                                        \
+    }                                                                                                         \
+    fmi3Status fmi3Set##Name(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,                \
+                             const CType values[], size_t nValues) {                                          \
+        GUARD("fmi3Set" #Name, S_SET);                                                                        \
+        size_t j = 0;                                                                                         \
+        if (!check_access(inst, "fmi3Set" #Name, vr, nvr, mask, nValues, 1, VALUE_AT, values))               \
+            return fmi3Error;                                                                                 \
+        for (size_t i = 0; i < nvr; i++) {                                                                    \
+            const Variable *v = variable_of(inst, vr[i]);                                                     \
+            size_t n = variable_size(inst, vr[i]);                                                            \
+            for (size_t k = 0; k < n; k++) store(inst, v, k, values[j++]);                                    \
+        }                                                                                                     \
+        note_set(inst, vr, nvr);                                                                              \
+        return fmi3OK;                                                                                        \
+    }
+
+#define AS_DOUBLE(Name, CType) \
+    static double Name##_at(const void *values, size_t j) { return (double)((const CType *)values)[j]; }
+
+AS_DOUBLE(Float32, fmi3Float32)
+AS_DOUBLE(Float64, fmi3Float64)
+AS_DOUBLE(Int8, fmi3Int8)
+AS_DOUBLE(UInt8, fmi3UInt8)
+AS_DOUBLE(Int16, fmi3Int16)
+AS_DOUBLE(UInt16, fmi3UInt16)
+AS_DOUBLE(Int32, fmi3Int32)
+AS_DOUBLE(UInt32, fmi3UInt32)
+AS_DOUBLE(Int64, fmi3Int64)
+AS_DOUBLE(UInt64, fmi3UInt64)
+
+ACCESSORS(Float32, fmi3Float32, M(T_FLOAT32), load_real, store_real, Float32_at)
+ACCESSORS(Float64, fmi3Float64, M(T_REAL), load_real, store_real, Float64_at)
+ACCESSORS(Int8, fmi3Int8, M(T_INT8), load_int, store_int, Int8_at)
+ACCESSORS(UInt8, fmi3UInt8, M(T_UINT8), load_int, store_int, UInt8_at)
+ACCESSORS(Int16, fmi3Int16, M(T_INT16), load_int, store_int, Int16_at)
+ACCESSORS(UInt16, fmi3UInt16, M(T_UINT16), load_int, store_int, UInt16_at)
+ACCESSORS(Int32, fmi3Int32, M(T_INTEGER), load_int, store_int, Int32_at)
+ACCESSORS(UInt32, fmi3UInt32, M(T_UINT32), load_int, store_int, UInt32_at)
+ACCESSORS(Int64, fmi3Int64, M(T_INT64) | M(T_SOLVER), load_int, store_int, Int64_at)
+ACCESSORS(UInt64, fmi3UInt64, M(T_UINT64), load_uint64, store_uint64, UInt64_at)
+ACCESSORS(Boolean, fmi3Boolean, M(T_BOOLEAN), load_bool, store_bool, NULL)
+
+fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3String values[],
+                         size_t nValues) {
+    GUARD("fmi3GetString", S_GET);
+    size_t j = 0;
+    if (!prepare_get(inst, "fmi3GetString", vr, nvr, M(T_STRING), nValues)) return fmi3Error;
+    for (size_t i = 0; i < nvr; i++) {
+        const Variable *v = variable_of(inst, vr[i]);
+        size_t n = variable_size(inst, vr[i]);
+        for (size_t k = 0; k < n; k++) values[j++] = model_string(inst, v->slot + (int)k);
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                         const fmi3String values[], size_t nValues) {
+    GUARD("fmi3SetString", S_SET);
+    size_t j = 0;
+    if (!check_access(inst, "fmi3SetString", vr, nvr, M(T_STRING), nValues, 1, NULL, NULL)) return fmi3Error;
+    for (j = 0; j < nValues; j++) {
+        if (!values[j] || strlen(values[j]) >= STRING_CAPACITY) {
+            layer_log(inst, LOG_ERROR, "fmi3SetString: value %zu is NULL or longer than %d bytes", j,
+                      STRING_CAPACITY - 1);
+            return fmi3Error;
+        }
+    }
+    j = 0;
+    for (size_t i = 0; i < nvr; i++) {
+        const Variable *v = variable_of(inst, vr[i]);
+        size_t n = variable_size(inst, vr[i]);
+        for (size_t k = 0; k < n; k++) model_set_string(inst, v->slot + (int)k, values[j++]);
+    }
+    note_set(inst, vr, nvr);
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
+                         fmi3Binary values[], size_t nValues) {
+    GUARD("fmi3GetBinary", S_GET);
+    size_t j = 0;
+    if (!prepare_get(inst, "fmi3GetBinary", vr, nvr, M(T_BINARY), nValues)) return fmi3Error;
+    for (size_t i = 0; i < nvr; i++) {
+        const Variable *v = variable_of(inst, vr[i]);
+        size_t n = variable_size(inst, vr[i]);
+        for (size_t k = 0; k < n; k++, j++) values[j] = model_binary(inst, v->slot + (int)k, &valueSizes[j]);
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    GUARD("fmi3SetBinary", S_SET);
+    size_t j = 0;
+    if (!check_access(inst, "fmi3SetBinary", vr, nvr, M(T_BINARY), nValues, 1, NULL, NULL)) return fmi3Error;
+    for (j = 0; j < nValues; j++) {
+        if (valueSizes[j] > BINARY_CAPACITY || (!values[j] && valueSizes[j] > 0)) {
+            layer_log(inst, LOG_ERROR, "fmi3SetBinary: value %zu: %zu bytes (at most %d, and not NULL)", j,
+                      valueSizes[j], BINARY_CAPACITY);
+            return fmi3Error;
+        }
+    }
+    j = 0;
+    for (size_t i = 0; i < nvr; i++) {
+        const Variable *v = variable_of(inst, vr[i]);
+        size_t n = variable_size(inst, vr[i]);
+        for (size_t k = 0; k < n; k++, j++) model_set_binary(inst, v->slot + (int)k, values[j], valueSizes[j]);
+    }
+    note_set(inst, vr, nvr);
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
+    GUARD("fmi3GetClock", ANY_STATE);
+    (void)vr, (void)nvr, (void)values;
+    return unsupported(inst, "fmi3GetClock", "the FMU has no clocks");
+}
+
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                        const fmi3Clock values[]) {
+    GUARD("fmi3SetClock", ANY_STATE);
+    (void)vr, (void)nvr, (void)values;
+    return unsupported(inst, "fmi3SetClock", "the FMU has no clocks");
+}
+
+/* -------------------------------------------------------- dependencies */
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    GUARD("fmi3GetNumberOfVariableDependencies", ANY_STATE);
+    (void)valueReference, (void)nDependencies;
+    return unsupported(inst, "fmi3GetNumberOfVariableDependencies", "see ModelStructure in modelDescription.xml");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+                                       size_t nDependencies) {
+    GUARD("fmi3GetVariableDependencies", ANY_STATE);
+    (void)dependent, (void)elementIndicesOfDependent, (void)independents, (void)elementIndicesOfIndependents;
+    (void)dependencyKinds, (void)nDependencies;
+    return unsupported(inst, "fmi3GetVariableDependencies", "see ModelStructure in modelDescription.xml");
+}
+
+/* ------------------------------------------------------------ FMU state */
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    GUARD("fmi3GetFMUState", ANY_STATE);
+    return (fmi3Status)state_get(inst, "fmi3GetFMUState", FMUState);
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    GUARD("fmi3SetFMUState", ANY_STATE);
+    return (fmi3Status)state_set(inst, "fmi3SetFMUState", FMUState);
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    GUARD("fmi3FreeFMUState", ANY_STATE);
+    state_free(FMUState);
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size) {
+    GUARD("fmi3SerializedFMUStateSize", ANY_STATE);
+    return (fmi3Status)state_serialized_size(inst, FMUState, size);
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+                                 size_t size) {
+    GUARD("fmi3SerializeFMUState", ANY_STATE);
+    return (fmi3Status)state_serialize(inst, "fmi3SerializeFMUState", FMUState, serializedState, size);
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState) {
+    GUARD("fmi3DeserializeFMUState", ANY_STATE);
+    return (fmi3Status)state_deserialize(inst, "fmi3DeserializeFMUState", serializedState, size, FMUState);
+}
+
+/* ---------------------------------------------------------- derivatives */
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                        size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
+                                        const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
+                                        size_t nSensitivity) {
+    GUARD("fmi3GetDirectionalDerivative", S_INIT | S_STEP | S_TERM);
+    if (nSeed != nKnowns || nSensitivity != nUnknowns) {
+        layer_log(inst, LOG_ERROR,
+                  "fmi3GetDirectionalDerivative: %zu seeds for %zu knowns, %zu sensitivities for %zu unknowns "
+                  "(scalar Float64 variables only)",
+                  nSeed, nKnowns, nSensitivity, nUnknowns);
+        return fmi3Error;
+    }
+    return (fmi3Status)directional_derivative(inst, "fmi3GetDirectionalDerivative", unknowns, nUnknowns, knowns,
+                                              nKnowns, seed, sensitivity);
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    GUARD("fmi3GetAdjointDerivative", ANY_STATE);
+    (void)unknowns, (void)nUnknowns, (void)knowns, (void)nKnowns, (void)seed, (void)nSeed, (void)sensitivity;
+    (void)nSensitivity;
+    return unsupported(inst, "fmi3GetAdjointDerivative", "providesAdjointDerivatives=\"false\"");
+}
+
+/* ------------------------------------- configuration, clocks, event mode */
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
+    GUARD("fmi3EnterConfigurationMode", ANY_STATE);
+    return unsupported(inst, "fmi3EnterConfigurationMode", "the FMU has no structural parameters");
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
+    GUARD("fmi3ExitConfigurationMode", ANY_STATE);
+    return unsupported(inst, "fmi3ExitConfigurationMode", "the FMU has no structural parameters");
+}
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                  fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]) {
+    GUARD("fmi3GetIntervalDecimal", ANY_STATE);
+    (void)vr, (void)nvr, (void)intervals, (void)qualifiers;
+    return unsupported(inst, "fmi3GetIntervalDecimal", "the FMU has no clocks");
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                   fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) {
+    GUARD("fmi3GetIntervalFraction", ANY_STATE);
+    (void)vr, (void)nvr, (void)counters, (void)resolutions, (void)qualifiers;
+    return unsupported(inst, "fmi3GetIntervalFraction", "the FMU has no clocks");
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                               fmi3Float64 shifts[]) {
+    GUARD("fmi3GetShiftDecimal", ANY_STATE);
+    (void)vr, (void)nvr, (void)shifts;
+    return unsupported(inst, "fmi3GetShiftDecimal", "the FMU has no clocks");
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                fmi3UInt64 counters[], fmi3UInt64 resolutions[]) {
+    GUARD("fmi3GetShiftFraction", ANY_STATE);
+    (void)vr, (void)nvr, (void)counters, (void)resolutions;
+    return unsupported(inst, "fmi3GetShiftFraction", "the FMU has no clocks");
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                  const fmi3Float64 intervals[]) {
+    GUARD("fmi3SetIntervalDecimal", ANY_STATE);
+    (void)vr, (void)nvr, (void)intervals;
+    return unsupported(inst, "fmi3SetIntervalDecimal", "the FMU has no clocks");
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                   const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
+    GUARD("fmi3SetIntervalFraction", ANY_STATE);
+    (void)vr, (void)nvr, (void)counters, (void)resolutions;
+    return unsupported(inst, "fmi3SetIntervalFraction", "the FMU has no clocks");
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                               const fmi3Float64 shifts[]) {
+    GUARD("fmi3SetShiftDecimal", ANY_STATE);
+    (void)vr, (void)nvr, (void)shifts;
+    return unsupported(inst, "fmi3SetShiftDecimal", "the FMU has no clocks");
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
+    GUARD("fmi3SetShiftFraction", ANY_STATE);
+    (void)vr, (void)nvr, (void)counters, (void)resolutions;
+    return unsupported(inst, "fmi3SetShiftFraction", "the FMU has no clocks");
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
+    GUARD("fmi3EvaluateDiscreteStates", ANY_STATE);
+    return unsupported(inst, "fmi3EvaluateDiscreteStates", "providesEvaluateDiscreteStates=\"false\"");
+}
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    GUARD("fmi3UpdateDiscreteStates", ANY_STATE);
+    (void)discreteStatesNeedUpdate, (void)terminateSimulation, (void)nominalsOfContinuousStatesChanged;
+    (void)valuesOfContinuousStatesChanged, (void)nextEventTimeDefined, (void)nextEventTime;
+    return unsupported(inst, "fmi3UpdateDiscreteStates", "the FMU has no Event Mode");
+}
+
+/* ------------------------------------------- model exchange (not offered) */
+
+#define NO_ME(function)                                                                         \
+    GUARD(function, ANY_STATE);                                                                 \
+    return unsupported(inst, function, "this FMU offers FMI 3.0 Co-Simulation only")
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { NO_ME("fmi3EnterContinuousTimeMode"); }
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint, (void)enterEventMode, (void)terminateSimulation;
+    NO_ME("fmi3CompletedIntegratorStep");
+}
+
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
+    (void)time;
+    NO_ME("fmi3SetTime");
+}
+
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates, (void)nContinuousStates;
+    NO_ME("fmi3SetContinuousStates");
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates) {
+    (void)derivatives, (void)nContinuousStates;
+    NO_ME("fmi3GetContinuousStateDerivatives");
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
+    (void)eventIndicators, (void)nEventIndicators;
+    NO_ME("fmi3GetEventIndicators");
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates, (void)nContinuousStates;
+    NO_ME("fmi3GetContinuousStates");
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates) {
+    (void)nominals, (void)nContinuousStates;
+    NO_ME("fmi3GetNominalsOfContinuousStates");
+}
+
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
+    (void)nEventIndicators;
+    NO_ME("fmi3GetNumberOfEventIndicators");
+}
+
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
+    (void)nContinuousStates;
+    NO_ME("fmi3GetNumberOfContinuousStates");
+}
+
+/* --------------------------------------------------------- co-simulation */
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
+    GUARD("fmi3EnterStepMode", ANY_STATE);
+    return unsupported(inst, "fmi3EnterStepMode", "the FMU has no Event Mode: it is in Step Mode after "
+                                                  "fmi3ExitInitializationMode");
+}
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                    const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues) {
+    GUARD("fmi3GetOutputDerivatives", S_GET);
+    (void)vr, (void)nvr, (void)orders, (void)values, (void)nValues;
+    return unsupported(inst, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder = 0");
+}
+
+fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
+                      fmi3Float64 communicationStepSize, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                      fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
+                      fmi3Float64 *lastSuccessfulTime) {
+    GUARD("fmi3DoStep", S_STEP);
+    LayerStatus status;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (earlyReturn) *earlyReturn = fmi3False;
+    status = do_step(inst, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
+    if (lastSuccessfulTime) *lastSuccessfulTime = inst->core->time;
+    if (status == LAYER_DISCARD && inst->core->terminate) {
+        /* The step completed and the model asks to end the simulation (FMI 3.0, 4.2.4). */
+        if (terminateSimulation) *terminateSimulation = fmi3True;
+        return fmi3OK;
+    }
+    return (fmi3Status)status;
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) {
+    (void)clockReference, (void)activationTime;
+    GUARD("fmi3ActivateModelPartition", ANY_STATE);
+    return unsupported(inst, "fmi3ActivateModelPartition", "this FMU offers FMI 3.0 Co-Simulation only");
+}
