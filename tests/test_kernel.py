@@ -106,6 +106,19 @@ def test_paced_run_reports_a_lateness_histogram(echo):
     assert s.idle_time > 0 and "frame lateness: p50" in str(s)
 
 
+@pytest.mark.parametrize("macro_step", [Fraction(1, 10), Fraction(1, 20), Fraction(1, 50)])
+def test_coupling_error_estimate_tracks_the_true_coupling_error(macro_step):
+    """On the two-mass oscillator, orders 0-3: the estimate of mass1.x -> mass2.x_in is within a
+    factor of 3 of the connection's true coupling error (the value mass2 was given against the
+    exact x1), and falls with the order as that error does."""
+    from master.evidence.oscillator import estimate_against_truth
+
+    found = [estimate_against_truth(macro_step, p) for p in range(4)]
+    for est, link, _ in found:
+        assert link / 3 <= est <= 3 * link
+    assert all(a[0] > b[0] and a[1] > b[1] for a, b in zip(found, found[1:], strict=False))
+
+
 @pytest.mark.parametrize("order", [0, 1, 2, 3])
 def test_coupling_error_estimate_is_its_definition(order):
     """mass1.x -> mass2.x_in (Jacobi, order p): at each macro step end the sample the polynomial

@@ -161,3 +161,26 @@ def scene(
     src = path or Path(__file__).resolve().parents[2] / "fmus" / "msd" / "model.c"
     return Scenario(src, f"oscillator-{split}", tuple(comps), tuple(conns), Fraction(0), Fraction(stop_time),
                     Fraction(macro_step), coupling, ("mass1", "mass2"), record=record)  # fmt: skip
+
+
+def estimate_against_truth(macro_step: Fraction, order: int) -> tuple[float, float, float]:
+    """The coupling error estimate of mass1.x -> mass2.x_in against the truth, parameter set A,
+    force split, polynomial inputs handed to both FMUs, 10 s; each relative to the range of the
+    exact x1: (the run summary's estimate: the largest difference between the value the
+    polynomial gave mass2 at a macro step's end and the sample mass1 then produced; the true
+    coupling error of the connection: the largest difference between that value and the exact
+    x1 at that time; the error the coupling leaves in mass1.x, which mass2's dynamics filter)."""
+    from master.api import run
+    from master.coupling import weights
+
+    r = run(scene(split="force", macro_step=macro_step, stop_time=Fraction(10), order=order,
+                  interpolate=(True, True)), backend="in-process")  # fmt: skip
+    y = r.data["mass1.x"]  # a row every macro step: the source's samples
+    exact = SET_A.exact(r.data["time"], SET_A_Z0)[:, 0]
+    span = float(np.ptp(exact))
+    w = weights(order, 1, 1)
+    ends = range(order + 1, len(y) - 1)  # the macro steps the estimate covers (full order)
+    given = np.array([sum(w[q] * y[n - 1 - q] for q in range(order + 1)) for n in ends])
+    link = float(np.max(np.abs(given - exact[order + 1 : len(y) - 1]))) / span
+    state = float(np.max(np.abs(y - exact))) / span
+    return r.summary.coupling_errors["mass1.x -> mass2.x_in"]["max"], link, state
