@@ -51,7 +51,7 @@ MANTISSAS = (
 )  # the ladder of macro steps: these times powers of ten
 LADDER_DECADES = (-6, 1)  # 1e-6 s ... 50 s
 VARIANTS_OF = 3  # per round, the cheapest families that meet the tolerance get their variants tried
-ROUNDS = 8  # rounds of that coordinate search
+ROUNDS = 12  # rounds of that coordinate search
 CONTROL_SOLVERS = (EULER, AB2, AB3, SI_EULER, SI_MIDPOINT)
 MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
 FINALISTS = 4  # families timed again at the end
