@@ -13,7 +13,17 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from master.fmu import VariableInfo
-from master.scenario.fmuinfo import CONNECTABLE, RECORDED, STIMULATED, coupling_kind, recordable
+from master.scenario.fmuinfo import (
+    CONNECTABLE,
+    CONTINUOUS,
+    RECORDED,
+    STIMULATED,
+    connection_problem,
+    coupling_kind,
+    recordable,
+    stimulus_problem,
+    stimulus_value_problem,
+)
 from master.scenario.model import Scenario, Stimulus
 
 MAX_ORDER = 3
@@ -63,16 +73,18 @@ class Clock:
         return Fraction(self.num0 + j * self.dnum, self.den)
 
 
-KINDS = ("Real", "Integer", "Boolean")  # what connections carry, in the kernel's order of inputs
+# what connections carry (fmuinfo.coupling_kind), in the kernel's order of inputs and outputs
+KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64",
+         "UInt64")  # fmt: skip
 
 
 def _article(word: str | None) -> str:
     return f"an {word}" if str(word)[0] in "AEIOU" else f"a {word}"
 
 
-def value_kind(plain_type: str) -> str:
-    """The kind of a connected variable's value from its plain type (fmu.VariableInfo.type)."""
-    return "Integer" if plain_type in ("Integer", "Enumeration") else plain_type
+def value_kind(v: VariableInfo, fmi_version: str) -> str | None:
+    """The kind (`KINDS`) of a variable's value as connections carry it, None for String, Binary."""
+    return coupling_kind(v.fmi_type or v.type, fmi_version)
 
 
 @dataclass(frozen=True)
@@ -87,7 +99,7 @@ class Link:
     source_first: bool  # the source completes the macro step before the consumer starts it
     k_source: int  # effective step ratios
     k_consumer: int
-    kind: str = "Real"  # what it carries: Real, or Integer / Boolean (held: order 0)
+    kind: str = "Real"  # what it carries (`KINDS`): Real, Float32, or a held kind (order 0)
 
     def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
@@ -174,6 +186,7 @@ class Plan:
             lines.append(f"  {c.name}: k = {c.ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
         for lk in self.links:
             how = "interpolated" if lk.source_first else "extrapolated"
+            how = how if lk.kind in CONTINUOUS else f"held ({lk.kind})"
             for o, i in zip(lk.outputs, lk.inputs, strict=True):
                 lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}")
         for s in self.stimuli:
@@ -249,6 +262,7 @@ def build_plan(
         where = (
             f"connection {cn.start_component}.{cn.start_connector} -> {cn.end_component}.{cn.end_connector}"
         )
+        ends = []  # (name, FMI type, FMI version) of the output and of the input
         for comp, var, causal in (
             (cn.start_component, cn.start_connector, "output"),
             (cn.end_component, cn.end_connector, "input"),
@@ -258,22 +272,18 @@ def build_plan(
             v = variables[comp].get(var)
             if v is None:
                 raise _err(sc, f"{where}: component {comp} has no variable {var!r}")
-            version = capabilities.get(comp, Capability()).fmi_version
-            if coupling_kind(v.fmi_type or v.type, version) is None:
-                raise _err(
-                    sc, f"{where}: {comp}.{var} is {v.fmi_type or v.type}; connections carry {CONNECTABLE}"
-                )
+            typed, version = v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version
+            if coupling_kind(typed, version) is None:
+                raise _err(sc, f"{where}: {comp}.{var} is {typed}; connections carry {CONNECTABLE}")
             if v.causality != causal:
                 raise _err(sc, f"{where}: {comp}.{var} has causality {v.causality}, {causal} needed")
-        kinds = [
-            coupling_kind(
-                variables[c][n].fmi_type or variables[c][n].type,
-                capabilities.get(c, Capability()).fmi_version,
-            )
-            for c, n in ((cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector))
-        ]
+            ends.append((f"{comp}.{var}", typed, version))
+        kinds = [coupling_kind(typed, version) for _, typed, version in ends]
         if kinds[0] != kinds[1]:
             raise _err(sc, f"{where}: {_article(kinds[0])} output cannot drive {_article(kinds[1])} input")
+        problem = connection_problem(*ends[0], *ends[1])
+        if problem:  # the same kind, types of different classes (an FMI 3 Enumeration and an Int64)
+            raise _err(sc, f"{where}: {problem}")
         key_in = (cn.end_component, cn.end_connector)
         if key_in in driven:
             raise _err(sc, f"{where}: input {cn.end_component}.{cn.end_connector} is driven twice")
@@ -282,8 +292,8 @@ def build_plan(
         order_ = order_ if cn.extrapolation_order is None else cn.extrapolation_order
         if not 0 <= order_ <= MAX_ORDER:
             raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
-        if kinds[0] != "Real":
-            order_ = 0  # Integer and Boolean signals are held between communication points
+        if kinds[0] not in CONTINUOUS:
+            order_ = 0  # discrete signals (integers, Booleans) are held between communication points
         groups.setdefault((cn.start_component, cn.end_component, order_, kinds[0]), []).append(
             (cn.start_connector, cn.end_connector)
         )
@@ -330,17 +340,22 @@ def build_plan(
         if s.component not in variables or s.variable not in variables[s.component]:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: no such variable")
         v = variables[s.component][s.variable]
-        carried = coupling_kind(v.fmi_type or v.type, capabilities.get(s.component, Capability()).fmi_version)
-        if v.causality != "input" or carried not in ("Real", "Integer"):
+        typed, version = v.fmi_type or v.type, capabilities.get(s.component, Capability()).fmi_version
+        if v.causality != "input":
             raise _err(
                 sc,
                 f"stimulus on {s.component}.{s.variable}: a {STIMULATED} input is needed, "
-                f"got {v.causality} {v.fmi_type or v.type}",
+                f"got {v.causality} {typed}",
             )
-        if carried == "Integer" and s.kind != "step":
-            raise _err(
-                sc, f"stimulus on {s.component}.{s.variable}: an Integer input takes a step, not a table"
-            )
+        problem = stimulus_problem(typed, version, s.kind)
+        if problem:
+            raise _err(sc, f"stimulus on {s.component}.{s.variable}: it is {typed}; {problem}")
+        for value in s.values:
+            wrong = stimulus_value_problem(typed, version, float(value))
+            if wrong:
+                raise _err(
+                    sc, f"stimulus on {s.component}.{s.variable}: value {value:g} is {wrong} ({typed})"
+                )
         if (s.component, s.variable) in driven:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: the input is already driven")
         if len(s.times) != len(s.values) or not s.times:

@@ -96,9 +96,10 @@ def test_what_a_connection_carries_per_fmi_type():
         "Integer",
         None,
     ]
-    assert [
-        coupling_kind(t, "3.0") for t in ("Float64", "Int32", "Boolean", "Enumeration", "Float32", "Int64")
-    ] == ["Real", "Integer", "Boolean", None, None, None]
+    fmi3 = ("Float64", "Int32", "Boolean", "Enumeration", "Float32", "Int64", "UInt8", "String", "Binary")
+    assert [coupling_kind(t, "3.0") for t in fmi3] == [
+        "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", None, None
+    ]  # fmt: skip
 
 
 def test_a_step_stimulus_drives_an_integer_input():

@@ -45,7 +45,8 @@ def history_capacity(plan: Plan, name: str) -> int:
 
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
     """Variables of `name` read at each communication point: the coupled Real outputs, the
-    recorded Real ones, then the coupled Integer and Boolean outputs (kernel.h's order)."""
+    recorded Real ones, then the coupled outputs of the other kinds, kind by kind (schedule.KINDS:
+    Integer, Boolean, then the FMI 3 ones read through their own calls; kernel.h's order)."""
     out: list[str] = []
     for kind in KINDS:
         for lk in plan.links:

@@ -61,14 +61,20 @@ static double point_time(const mk_component *c, int64_t j) {
     return (double)(c->num0 + j * c->dnum) / (double)c->den;
 }
 
+/* A call of the FMI 3 typed functions, as the failing calls below report it: MK_CALL_SET_TYPED or
+ * MK_CALL_GET_TYPED with the value kind in the bits above the lowest 8 (fail splits them). */
+#define TYPED_CALL(call, kind) ((call) | (kind) << 8)
+
 static int32_t fail(mk_kernel *k, int32_t code, int32_t comp, int32_t call, int32_t status, int64_t j) {
     k->error.code = code;
     k->error.component = comp;
-    k->error.call = call;
+    k->error.call = call < 0 ? call : call & 0xff;
+    k->error.kind = call < 0 ? 0 : call >> 8;
     k->error.status = status;
     k->error.point = j;
     k->error.variable = -1;
     k->error.value = 0.0;
+    k->error.integer = 0;
     return code;
 }
 
@@ -235,27 +241,106 @@ static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
     return st;
 }
 
-/* Set the inputs u[0..n_in) (Real, Integer, Boolean in turn); *call says which call failed. */
+/* n FMI 3 values of kind MK_FLOAT32 ... MK_UINT64 through fmi3Set<type> (kernel.h: set_typed), from
+ * doubles: a Float32 is rounded to float, an integer is exact (the plan hands over whole values in
+ * the type's range: a producer's samples of the same type, or checked stimuli). */
+#define SET_TYPED(T)                                                                                 \
+    {                                                                                                \
+        T x[n];                                                                                      \
+        typedef int set_t(void *, const uint32_t *, size_t, const T *, size_t);                     \
+        for (int32_t i = 0; i < n; i++) x[i] = (T)v[i];                                              \
+        return ((set_t *)c->set_typed[kind])(c->instance, vrs, (size_t)n, x, (size_t)n);             \
+    }
+
+static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, const double *v, int32_t n) {
+    switch (kind) {
+    case MK_FLOAT32: SET_TYPED(float)
+    case MK_INT8: SET_TYPED(int8_t)
+    case MK_UINT8: SET_TYPED(uint8_t)
+    case MK_INT16: SET_TYPED(int16_t)
+    case MK_UINT16: SET_TYPED(uint16_t)
+    case MK_UINT32: SET_TYPED(uint32_t)
+    case MK_INT64: SET_TYPED(int64_t)
+    case MK_UINT64: SET_TYPED(uint64_t)
+    default: return 4; /* fmi3Fatal: a kind this kernel does not know */
+    }
+}
+
+/* n FMI 3 values of one kind through fmi3Get<type> (kernel.h: get_typed), as doubles. inexact (may
+ * be NULL): set to the index of the first 64-bit integer beyond 2^53 in magnitude, which no double
+ * holds exactly (*integer: its bits), if *inexact is still negative. */
+#define GET_TYPED(T, BEYOND)                                                                         \
+    {                                                                                                \
+        T x[n];                                                                                      \
+        typedef int get_t(void *, const uint32_t *, size_t, T *, size_t);                           \
+        st = ((get_t *)c->get_typed[kind])(c->instance, vrs, (size_t)n, x, (size_t)n);               \
+        for (int32_t i = 0; i < n; i++) {                                                            \
+            v[i] = (double)x[i];                                                                     \
+            if (inexact && *inexact < 0 && (BEYOND)) *inexact = i, *integer = (uint64_t)x[i];        \
+        }                                                                                            \
+        break;                                                                                       \
+    }
+#define EXACT_LIMIT (INT64_C(1) << 53)
+
+static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, double *v, int32_t n,
+                     int32_t *inexact, uint64_t *integer) {
+    int st;
+    switch (kind) {
+    case MK_FLOAT32: GET_TYPED(float, false)
+    case MK_INT8: GET_TYPED(int8_t, false)
+    case MK_UINT8: GET_TYPED(uint8_t, false)
+    case MK_INT16: GET_TYPED(int16_t, false)
+    case MK_UINT16: GET_TYPED(uint16_t, false)
+    case MK_UINT32: GET_TYPED(uint32_t, false)
+    case MK_INT64: GET_TYPED(int64_t, x[i] > EXACT_LIMIT || x[i] < -EXACT_LIMIT)
+    case MK_UINT64: GET_TYPED(uint64_t, x[i] > (uint64_t)EXACT_LIMIT)
+    default: st = 4; /* fmi3Fatal: a kind this kernel does not know */
+    }
+    return st;
+}
+
+/* Set the inputs u[0..n_in) (Real, Integer, Boolean, then the typed ones a kind per call in turn);
+ * *call says which call failed. */
 static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
-    const int32_t nr = c->n_in_real, ni = c->n_in_integer, nb = c->n_in - nr - ni;
+    const int32_t nr = c->n_in_real, ni = c->n_in_integer, nt = c->n_in_typed, nb = c->n_in - nr - ni - nt;
     int st = STATUS_OK;
     if (nr && (st = set_real(c, c->in_vrs, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
     if (ni && (st = set_discrete(c, MK_INTEGER, c->in_vrs + nr, u + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_SET_INTEGER, st;
     if (nb && (st = set_discrete(c, MK_BOOLEAN, c->in_vrs + nr + ni, u + nr + ni, nb)) > STATUS_OK)
         return *call = MK_CALL_SET_BOOLEAN, st;
+    for (int32_t i = c->n_in - nt, end; i < c->n_in; i = end) {
+        const int32_t kind = c->in_kinds[i - (c->n_in - nt)];
+        for (end = i + 1; end < c->n_in && c->in_kinds[end - (c->n_in - nt)] == kind;) end++;
+        if ((st = set_typed(c, kind, c->in_vrs + i, u + i, end - i)) > STATUS_OK)
+            return *call = TYPED_CALL(MK_CALL_SET_TYPED, kind), st;
+    }
     return st;
 }
 
-/* Read the outputs into row[0..n_out) (Real, Integer, Boolean in turn). */
-static int get_outputs(const mk_component *c, double *row, int32_t *call) {
-    const int32_t nr = c->n_out_real, ni = c->n_out_integer, nb = c->n_out - nr - ni;
+/* Read the outputs into row[0..n_out) (Real, Integer, Boolean, then the typed ones a kind per call
+ * in turn); *call says which call failed, *inexact which output is a 64-bit integer beyond 2^53
+ * (-1: none; *integer: its bits). */
+static int get_outputs(const mk_component *c, double *row, int32_t *call, int32_t *inexact, uint64_t *integer) {
+    const int32_t nr = c->n_out_real, ni = c->n_out_integer, nt = c->n_out_typed, nb = c->n_out - nr - ni - nt;
     int st = STATUS_OK;
     if (nr && (st = get_real(c, c->out_vrs, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
     if (ni && (st = get_discrete(c, MK_INTEGER, c->out_vrs + nr, row + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_GET_INTEGER, st;
     if (nb && (st = get_discrete(c, MK_BOOLEAN, c->out_vrs + nr + ni, row + nr + ni, nb)) > STATUS_OK)
         return *call = MK_CALL_GET_BOOLEAN, st;
+    *inexact = -1;
+    for (int32_t i = c->n_out - nt, end; i < c->n_out; i = end) {
+        const int32_t kind = c->out_kinds[i - (c->n_out - nt)];
+        int32_t bad = -1;
+        for (end = i + 1; end < c->n_out && c->out_kinds[end - (c->n_out - nt)] == kind;) end++;
+        if ((st = get_typed(c, kind, c->out_vrs + i, row + i, end - i, &bad, integer)) > STATUS_OK)
+            return *call = TYPED_CALL(MK_CALL_GET_TYPED, kind), st;
+        if (bad >= 0) {
+            *inexact = i + bad;
+            break;
+        }
+    }
     return st;
 }
 
@@ -299,16 +384,7 @@ static int do_step(const mk_component *c, double t, bool final, int *terminate) 
     return st;
 }
 
-/* One FMI 3 value of C type T through fmi3Get<type> (kernel.h: get_typed), as a double. */
-#define GET_TYPED(T)                                                                                 \
-    {                                                                                                \
-        T v = 0;                                                                                     \
-        typedef int get_t(void *, const uint32_t *, size_t, T *, size_t);                           \
-        status = ((get_t *)c->get_typed[kind])(c->instance, &vr, 1, &v, 1);                         \
-        *out = (double)v;                                                                            \
-        break;                                                                                       \
-    }
-
+/* One recorded value of any kind but MK_REAL_SAMPLE, as a double (integers beyond 2^53 rounded). */
 static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
     int status;
     switch (kind) {
@@ -330,16 +406,8 @@ static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *
             *out = v ? 1.0 : 0.0;
         }
         break;
-    case MK_FLOAT32: GET_TYPED(float)
-    case MK_INT8: GET_TYPED(int8_t)
-    case MK_UINT8: GET_TYPED(uint8_t)
-    case MK_INT16: GET_TYPED(int16_t)
-    case MK_UINT16: GET_TYPED(uint16_t)
-    case MK_UINT32: GET_TYPED(uint32_t)
-    case MK_INT64: GET_TYPED(int64_t)
-    case MK_UINT64: GET_TYPED(uint64_t)
     default:
-        status = 4; /* fmi2Fatal / fmi3Fatal: a kind this kernel does not know */
+        status = get_typed(c, kind, &vr, out, 1, NULL, NULL);
     }
     return status;
 }
@@ -451,6 +519,24 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
 
 /* -- stepping -------------------------------------------------------------------------------- */
 
+/* Read component ci's outputs into `row`, its sample at point `sample`: MK_DONE, MK_FMI_ERROR (a call
+ * failed in the step from point j) or MK_INEXACT (a 64-bit integer beyond 2^53 in magnitude, which
+ * a connection would round). */
+static int32_t read_outputs(mk_kernel *k, int32_t ci, double *row, int64_t j, int64_t sample) {
+    int32_t call = 0, bad = -1;
+    uint64_t integer = 0;
+    int st = get_outputs(&k->components[ci], row, &call, &bad, &integer);
+    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (bad >= 0) {
+        fail(k, MK_INEXACT, ci, -1, 0, sample);
+        k->error.variable = bad;
+        k->error.value = row[bad];
+        k->error.integer = integer;
+        return MK_INEXACT;
+    }
+    return MK_DONE;
+}
+
 /* MK_NOT_FINITE / MK_DIVERGED if sample j (in `row`) is not finite or beyond its bound. */
 static int32_t check_sample(mk_kernel *k, int32_t ci, const double *row, int64_t j) {
     const mk_component *c = &k->components[ci];
@@ -527,8 +613,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         if (c->feedthrough && (st = set_inputs(c, u + n_in, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
-        if (c->n_out && c->reads[m] && (st = get_outputs(c, row, &call)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
@@ -564,8 +649,14 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const double *row = src->hist + (((n + 1) * lk->k_source) % src->cap) * src->n_out;
         for (int32_t i = 0; i < lk->n_cols; i++) c->scratch[i] = row[lk->columns[i]];
         const uint32_t *vrs = c->in_vrs + lk->slot0;
+        const int32_t typed = c->n_in - c->n_in_typed; /* a link's inputs are of one kind */
         if (lk->slot0 < c->n_in_real) {
+            call = MK_CALL_SET_REAL;
             st = set_real(c, vrs, c->scratch, lk->n_cols);
+        } else if (lk->slot0 >= typed) {
+            int32_t kind = c->in_kinds[lk->slot0 - typed];
+            call = TYPED_CALL(MK_CALL_SET_TYPED, kind);
+            st = set_typed(c, kind, vrs, c->scratch, lk->n_cols);
         } else {
             int32_t kind = lk->slot0 < c->n_in_real + c->n_in_integer ? MK_INTEGER : MK_BOOLEAN;
             call = kind == MK_INTEGER ? MK_CALL_SET_INTEGER : MK_CALL_SET_BOOLEAN;
@@ -573,9 +664,14 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         }
     }
     double *row = c->hist + (j % c->cap) * c->n_out;
-    if (st <= STATUS_OK) {
+    const int32_t n64 = c->n_resample - c->n_resample_float32;
+    if (st <= STATUS_OK && n64) {
         call = MK_CALL_GET_REAL;
-        st = get_real(c, c->resample_vrs, c->scratch, c->n_resample);
+        st = get_real(c, c->resample_vrs, c->scratch, n64);
+    }
+    if (st <= STATUS_OK && c->n_resample_float32) {
+        call = TYPED_CALL(MK_CALL_GET_TYPED, MK_FLOAT32);
+        st = get_typed(c, MK_FLOAT32, c->resample_vrs + n64, c->scratch + n64, c->n_resample_float32, NULL, NULL);
     }
     mark_idle(k);
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
@@ -675,7 +771,7 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     int64_t t0 = now_ns();
     int32_t call = 0;
     if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
-    if (c->n_out && (st = get_outputs(c, c->hist, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    if (c->n_out && (st = read_outputs(k, ci, c->hist, 0, 0)) != MK_DONE) return st;
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     return MK_DONE;
 }
@@ -707,7 +803,7 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         if (st > STATUS_OK) {
             int32_t call = rec->kind == MK_INTEGER   ? MK_CALL_GET_INTEGER
                            : rec->kind == MK_BOOLEAN ? MK_CALL_GET_BOOLEAN
-                                                     : MK_CALL_GET_TYPED;
+                                                     : TYPED_CALL(MK_CALL_GET_TYPED, rec->kind);
             fail(k, MK_FMI_ERROR, rec->component, call, st, (n + 1) * c->ratio);
             k->error.variable = r;
             return MK_FMI_ERROR;

@@ -1,9 +1,10 @@
 /* The stepping kernel: the macro-step loop of a compiled plan, with no Python on the per-step path.
  *
- * Python compiles a Plan once into the flat tables below (master/runtime/tables.py mirrors them
- * with ctypes; mk_layout() lets it check that both agree). mk_run() then steps many macro steps
- * per call and returns only when the results buffer is full, a wall-time budget is spent, the
- * requested macro step is reached, or on an error (mk_error says which component, when, why).
+ * Python compiles a Plan once into the flat tables below (master/runtime/tables.py fills them,
+ * master/runtime/native.py mirrors them with ctypes; mk_layout() lets it check that both agree
+ * in size). mk_run() then steps many macro steps per call and returns only when the results
+ * buffer is full, a wall-time budget is spent, the requested macro step is reached, or on an
+ * error (mk_error says which component, when, why).
  *
  * The arithmetic is the documented one of master/coupling.py (Lagrange weights computed exactly
  * in Python, terms summed in order w0 y0 + w1 y1 + ...), so results are bit for bit those of the
@@ -15,8 +16,11 @@
 
 #include <stdint.h>
 
-/* Value kinds: of coupled signals (Real, Integer = FMI 2 Integer / FMI 3 Int32, Boolean) and of
- * recorded FMI 3 values read through the call of their own type (an Enumeration is an Int64). */
+/* Value kinds of coupled signals and recorded values: Real (FMI 2 Real, FMI 3 Float64), Integer
+ * (FMI 2 Integer and Enumeration, FMI 3 Int32), Boolean, and the other FMI 3 numeric types, set and
+ * read through the calls of their own type (mk_component: set_typed, get_typed; an FMI 3
+ * Enumeration is an Int64). Values travel as doubles: exact for Float32 and for integers up to 2^53
+ * in magnitude. Real and Float32 signals are extrapolated, the others held (order 0). */
 enum {
     MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2, MK_FLOAT32, MK_INT8, MK_UINT8, MK_INT16, MK_UINT16,
     MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
@@ -32,13 +36,15 @@ enum {
     MK_DIVERGED = 5,   /* an output grew beyond its bound */
     MK_ABORTED = 6,    /* another process failed or the supervisor cancelled the run */
     MK_STOPPED = 7,    /* an FMU ended the simulation (FMI 2 fmi2Terminated, FMI 3 terminateSimulation) */
+    MK_INEXACT = 8,    /* a 64-bit integer output in a history (a coupled one) is beyond 2^53 in
+                          magnitude: a double cannot carry it exactly */
 };
 
 /* Which FMI call failed (mk_error.call). */
 enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
-    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED,
+    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED, MK_CALL_SET_TYPED,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -101,15 +107,19 @@ typedef struct {
     mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean, set_integer, set_boolean;
     mk_function get_state, set_state, free_state, get_boolean_status;
     mk_function get_typed[MK_KINDS]; /* FMI 3: fmi3Get<type> of kinds MK_FLOAT32 ... MK_UINT64 */
+    mk_function set_typed[MK_KINDS]; /* FMI 3: fmi3Set<type> of the same kinds */
     /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
     int64_t num0, dnum, den;
     double h;
     int32_t ratio;
     /* inputs: u[m][block][i], blocks = n_values values (step start, step end) then derivatives;
      * the first n_in_real are Real (FMI 3 Float64), the next n_in_integer Integer (Int32, FMI 2
-     * Enumeration), the rest Boolean: discrete ones travel as exact doubles, held (order 0) */
+     * Enumeration), then Boolean ones, and the last n_in_typed of the FMI 3 kinds in_kinds[i]
+     * (MK_FLOAT32 ... MK_UINT64, those of one kind together, set one kind per call): discrete ones
+     * travel as exact doubles, held (order 0) */
     int32_t n_in;
-    int32_t n_in_real, n_in_integer;
+    int32_t n_in_real, n_in_integer, n_in_typed;
+    const int32_t *in_kinds; /* [n_in_typed] */
     const uint32_t *in_vrs;
     int32_t n_blocks;
     int32_t n_values;
@@ -123,9 +133,10 @@ typedef struct {
     int32_t n_stimuli;
     const mk_stimulus *stimuli;
     /* outputs: history ring [cap][n_out]; read after step m only where reads[m]; Real first, then
-     * n_out_integer Integer, then Boolean (as for the inputs) */
+     * n_out_integer Integer, then Boolean, then n_out_typed of kinds out_kinds (as for the inputs) */
     int32_t n_out;
-    int32_t n_out_real, n_out_integer;
+    int32_t n_out_real, n_out_integer, n_out_typed;
+    const int32_t *out_kinds; /* [n_out_typed] */
     const uint32_t *out_vrs;
     double *hist;
     double *hist_previous; /* start-up: the previous sweep's samples, [cap][n_out] */
@@ -134,12 +145,13 @@ typedef struct {
     const double *bound; /* |output| beyond this has diverged */
     /* Resampling: no output lags its time label. After each macro step (a start-up one after its
      * last sweep) the linked inputs are set again to the sources' final samples at the macro
-     * step's end, and the n_resample Real outputs that depend on inputs are read again into that
-     * sample, before it is published (tables.resampling says which components). */
+     * step's end, and the n_resample Real and Float32 outputs that depend on inputs (the last
+     * n_resample_float32 of them Float32) are read again into that sample, before it is published
+     * (tables.resampling says which components); held (discrete) outputs are not read again. */
     int32_t resample;
     int32_t resample_always; /* 0: the re-read outputs are recorded, never coupled: only at the
                                 macro steps that record a row */
-    int32_t n_resample;
+    int32_t n_resample, n_resample_float32;
     const uint32_t *resample_vrs;
     const int32_t *resample_cols; /* their history columns */
     const uint8_t *link_final;    /* [n_links] 1: wait for the source's resampled sample (the link
@@ -154,7 +166,8 @@ typedef struct {
     double fmu_time;
 } mk_component;
 
-/* One recorded column: a sample from a history, or an Integer / Boolean read from the FMU. */
+/* One recorded column: a sample from a history, or a value read from the FMU at the row through the
+ * call of its kind. */
 typedef struct {
     int32_t column; /* in the row (0 is time) */
     int32_t component;
@@ -168,8 +181,10 @@ typedef struct {
     int32_t call;
     int32_t status;
     int64_t point;    /* communication point j at the start of the failing step */
-    int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED) or record index */
+    int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED, MK_INEXACT) or record index */
+    int32_t kind;     /* the value kind of a failing MK_CALL_SET_TYPED / MK_CALL_GET_TYPED */
     double value;
+    uint64_t integer; /* MK_INEXACT: the integer read (an Int64 as its two's complement bits) */
 } mk_error;
 
 /* Per-frame lateness of real-time pacing: a histogram in microseconds and the extremes. */

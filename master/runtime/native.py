@@ -25,7 +25,7 @@ CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED = range(8)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT = range(9)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -40,9 +40,10 @@ CALLS = (
     "set_integer",
     "set_boolean",
     "get_typed",
+    "set_typed",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
-# FMI 3 values recorded through the call of their own type: kind by type (an Enumeration: Int64)
+# FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
 TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 KINDS = 11
 LATE_BINS = 10000
@@ -122,6 +123,7 @@ class Component(C.Structure):
         ("free_state", _p),
         ("get_boolean_status", _p),
         ("get_typed", _p * KINDS),
+        ("set_typed", _p * KINDS),
         ("num0", _i64),
         ("dnum", _i64),
         ("den", _i64),
@@ -130,6 +132,8 @@ class Component(C.Structure):
         ("n_in", _i32),
         ("n_in_real", _i32),
         ("n_in_integer", _i32),
+        ("n_in_typed", _i32),
+        ("in_kinds", C.POINTER(_i32)),
         ("in_vrs", C.POINTER(_u32)),
         ("n_blocks", _i32),
         ("n_values", _i32),
@@ -145,6 +149,8 @@ class Component(C.Structure):
         ("n_out", _i32),
         ("n_out_real", _i32),
         ("n_out_integer", _i32),
+        ("n_out_typed", _i32),
+        ("out_kinds", C.POINTER(_i32)),
         ("out_vrs", C.POINTER(_u32)),
         ("hist", C.POINTER(_f64)),
         ("hist_previous", C.POINTER(_f64)),
@@ -154,6 +160,7 @@ class Component(C.Structure):
         ("resample", _i32),
         ("resample_always", _i32),
         ("n_resample", _i32),
+        ("n_resample_float32", _i32),
         ("resample_vrs", C.POINTER(_u32)),
         ("resample_cols", C.POINTER(_i32)),
         ("link_final", C.POINTER(C.c_uint8)),
@@ -179,7 +186,9 @@ class Error(C.Structure):
         ("status", _i32),
         ("point", _i64),
         ("variable", _i32),
+        ("kind", _i32),
         ("value", _f64),
+        ("integer", C.c_uint64),
     ]
 
 

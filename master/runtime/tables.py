@@ -25,6 +25,7 @@ from master.backends.component import (
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
+from master.scenario.fmuinfo import CONTINUOUS
 from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
@@ -173,6 +174,7 @@ class CompiledPlan:
         self.memory = memory
         self._keep: list[object] = []  # every array and structure the kernel points into
         self.bound: dict[str, np.ndarray] = {}
+        self.held: dict[str, np.ndarray] = {}  # per local component: which history columns are held signals
         self.resampled, order = resampling(plan, outs)
         comps = (native.Component * len(self.names))()
         for i, pc in enumerate(plan.components):
@@ -260,6 +262,7 @@ class CompiledPlan:
             setattr(c, slot, _function(fmu, slot))
         for name, kind in native.TYPED.items() if fmu.fmi3 else ():
             c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
+            c.set_typed[kind] = _exported(fmu, f"fmi3Set{name}")
         for slot in ("do_step", "set_real", "get_real"):
             if getattr(c, slot) is None:
                 raise FmuError(f"{pc.name}: {fmu.path.name} does not export {FMI_FUNCTIONS[slot][c.fmi - 2]}")
@@ -268,19 +271,36 @@ class CompiledPlan:
         c.h = float(pc.step)
         c.ratio = k = pc.ratio
 
-        # inputs Real first (links, then stimuli), then Integer, then Boolean: kernel.h
+        # inputs by kind (schedule.KINDS: Real, Integer, Boolean, then the FMI 3 kinds of their own
+        # calls), of each kind the links' then the stimuli's: kernel.h
         links = plan.links_into(pc.name)
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
+        version = "3.0" if fmu.fmi3 else "2.0"
+
+        def kind_of(name: str) -> str | None:
+            return value_kind(fmu.variables[name], version)
+
         in_names = []
         for kind in KINDS:
             in_names += [i for lk in links if lk.kind == kind for i in lk.inputs]
-            in_names += [s.variable for s in stimuli if value_kind(fmu.variables[s.variable].type) == kind]
-        in_kinds = [value_kind(fmu.variables[n].type) for n in in_names]
+            in_names += [s.variable for s in stimuli if kind_of(s.variable) == kind]
+        in_kinds = [kind_of(n) for n in in_names]
         in_vrs = [fmu.variables[n].vr for n in in_names]
         c.n_in_real, c.n_in_integer = in_kinds.count("Real"), in_kinds.count("Integer")
+        typed_in = [native.TYPED[k] for k in in_kinds if k in native.TYPED]
+        c.n_in_typed, c.in_kinds = len(typed_in), _ptr(self._array(typed_in, np.int32), C.c_int32)
         out = self.outs[pc.name]
-        out_kinds = [value_kind(fmu.variables[o].type) for o in out]
+        out_kinds = [kind_of(o) for o in out]
+        assert [KINDS.index(k) for k in out_kinds] == sorted(KINDS.index(k) for k in out_kinds), out_kinds
         c.n_out_real, c.n_out_integer = out_kinds.count("Real"), out_kinds.count("Integer")
+        typed_out = [native.TYPED[k] for k in out_kinds if k in native.TYPED]
+        c.n_out_typed, c.out_kinds = len(typed_out), _ptr(self._array(typed_out, np.int32), C.c_int32)
+        self.held[pc.name] = np.array([k not in CONTINUOUS for k in out_kinds], dtype=bool)
+        for kind in set(typed_in) | set(typed_out):
+            name = next(n for n, k in native.TYPED.items() if k == kind)
+            for calls, verb, used in ((c.set_typed, "Set", typed_in), (c.get_typed, "Get", typed_out)):
+                if kind in used and calls[kind] is None:
+                    raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi3{verb}{name}")
         c.feedthrough = int(bool(in_names) and any(o in fmu.feedthrough for o in out))
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
@@ -337,8 +357,9 @@ class CompiledPlan:
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
-        again = self.resampled.get(pc.name, [])
+        again = self.resampled.get(pc.name, [])  # Float64 ones, then Float32 ones (resampling)
         c.resample, c.n_resample = int(bool(again)), len(again)
+        c.n_resample_float32 = sum(kind_of(o) == "Float32" for o in again)
         coupled = {o for lk in plan.links if lk.source == pc.name for o in lk.outputs}
         c.resample_always = int(bool(coupled & set(again)))  # else only where a row is recorded
         c.resample_vrs = _ptr(self._array([fmu.variables[o].vr for o in again], np.uint32), C.c_uint32)
@@ -351,7 +372,7 @@ class CompiledPlan:
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
         the source's next macro-step sample, and its rows of the shared statistics, reset."""
-        if lk.source_first or lk.kind != "Real":  # discrete signals are held, not predicted
+        if lk.source_first or lk.kind not in CONTINUOUS:  # discrete signals are held, not predicted
             return {}
         rows = self.memory["estimates"][estimate_rows(self.plan, lk)]
         rows[:] = 0.0
@@ -399,9 +420,12 @@ class CompiledPlan:
         p.origin_ns, p.n_origin = origin_ns, n_origin
 
     def set_bounds(self) -> None:
-        """Divergence bounds of the local components from their samples at the start time."""
+        """Divergence bounds of the local components from their samples at the start time (none for
+        held signals: an integer or a Boolean is a value, not an unstable coupling)."""
         for name, bound in self.bound.items():
-            bound[:] = GROWTH_LIMIT * np.maximum(1.0, np.abs(self.memory[f"hist:{name}"][0]))
+            start = self.memory[f"hist:{name}"][0]  # no outputs: bound is a placeholder of 1
+            grown = GROWTH_LIMIT * np.maximum(1.0, np.abs(start))
+            bound[: len(start)] = np.where(self.held[name], np.inf, grown)
 
     def record_row(self, n: int) -> None:
         """The row after macro step n (n = -1: the start time) into the results ring."""
@@ -469,14 +493,29 @@ class CompiledPlan:
             else:
                 what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
+        if e.code == native.INEXACT:
+            bad = self.outs[name][e.variable]
+            typed = fmu.variables[bad].fmi_type
+            value = int(e.integer)
+            if typed != "UInt64" and value >= 2**63:  # an Int64 (or an Enumeration): two's complement
+                value -= 2**64
+            return SimulationError(
+                f"{name}.{bad} = {value} ({typed}) at t={t}: beyond 2^53 in magnitude, which a connection "
+                "cannot carry exactly (values travel as float64)",
+                name,
+                t,
+                bad,
+            )
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
-        cause = fmu.call_error(call, e.status)
-        if call in ("get_integer", "get_boolean", "get_typed"):
+        if call in ("get_typed", "set_typed"):
+            typed = next(n for n, k in native.TYPED.items() if k == e.kind)
+            verb = "Get" if call == "get_typed" else "Set"
+            cause = FmuError(fmu.describe(f"fmi3{verb}{typed} failed with status {e.status}"))
+        else:
+            cause = fmu.call_error(call, e.status)
+        if call in ("get_integer", "get_boolean", "get_typed") and e.variable >= 0:  # recording a row
             _, var = self.plan.record[self.record_index[e.variable]]
-            if call == "get_typed":
-                typed = fmu.variables[var].fmi_type.replace("Enumeration", "Int64")
-                cause = FmuError(fmu.describe(f"fmi3Get{typed} failed with status {e.status}"))
             return SimulationError(f"{cause}: reading {var}", name, math.nan, var)
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
@@ -578,9 +617,11 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
     """Which outputs each component reads again after a macro step (kernel.h: resample), and the
     order of those components (a source of re-read outputs before their consumers): every
     component driven by a link whose Real outputs read at communication points depend on inputs
-    (the model structure; none declared: all do). Its step-end inputs were extrapolated (a link
-    that is not ahead), a source's sample before that source was resampled, or, in start-up
-    sweeps, the previous sweep's; where they were final already, reading again changes nothing."""
+    (the model structure; none declared: all do), and its Float32 ones after them (read with
+    fmi3GetFloat32); held outputs (integers, Booleans) are not read again. Its step-end inputs were
+    extrapolated (a link that is not ahead), a source's sample before that source was resampled,
+    or, in start-up sweeps, the previous sweep's; where they were final already, reading again
+    changes nothing."""
     from master.fmu import feedthrough_outputs, read_description, variables_of
 
     through: dict[str, list[str]] = {}
@@ -589,7 +630,8 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
             continue
         md = read_description(plan.scenario.component(pc.name).fmu_path)
         depend, variables = feedthrough_outputs(md), variables_of(md)
-        chosen = [o for o in outs[pc.name] if o in depend and value_kind(variables[o].type) == "Real"]
+        kinds = {o: value_kind(variables[o], md.fmiVersion) for o in outs[pc.name] if o in depend}
+        chosen = [o for kind in CONTINUOUS for o in outs[pc.name] if kinds.get(o) == kind]
         if chosen:
             through[pc.name] = chosen
 

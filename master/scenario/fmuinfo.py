@@ -7,6 +7,7 @@ Integer vs Int32), so types are compared through `type_class`.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,30 +19,102 @@ NUMERIC = {"Float64", "Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "U
 FLOATS = {"Float64", "Float32"}
 
 
-COUPLED = {"Real": "Real", "Float64": "Real", "Integer": "Integer", "Int32": "Integer", "Boolean": "Boolean"}
-CONNECTABLE = "Real (FMI 3 Float64), Integer (Int32, FMI 2 Enumeration) and Boolean"
-STIMULATED = "Real (FMI 3 Float64) and Integer (Int32, FMI 2 Enumeration)"
+# What a connection of each FMI type carries: the runtime's value kinds (kernel.h). FMI 2 Real and
+# FMI 3 Float64 are both "Real", FMI 2 Integer and FMI 3 Int32 both "Integer" (so they connect
+# across versions, as SSP compares them); every other FMI 3 numeric type is a kind of its own, set
+# and read through the calls of its own type (an FMI 3 Enumeration through those of Int64).
+COUPLED = {
+    "Real": "Real",
+    "Float64": "Real",
+    "Integer": "Integer",
+    "Int32": "Integer",
+    "Boolean": "Boolean",
+    **{t: t for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")},
+}
+CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the other kinds are held
+CONNECTABLE = "numeric, Boolean and Enumeration signals; String and Binary ones cannot be connected"
+STIMULATED = "numeric and Enumeration"
+INT_RANGES = {
+    "Int8": (-(2**7), 2**7 - 1),
+    "UInt8": (0, 2**8 - 1),
+    "Int16": (-(2**15), 2**15 - 1),
+    "UInt16": (0, 2**16 - 1),
+    "Int32": (-(2**31), 2**31 - 1),
+    "UInt32": (0, 2**32 - 1),
+    "Int64": (-(2**63), 2**63 - 1),
+    "UInt64": (0, 2**64 - 1),
+}
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
-    """What a connection of a variable of this type carries: "Real", "Integer" or "Boolean" (the
-    runtime's value kinds; Integer and Boolean are held between communication points), None if
-    it cannot be connected (String, Binary, Float32, integers other than Int32, FMI 3 Enumeration)."""
+    """What a connection of a variable of this type carries (`COUPLED`): "Real", "Integer",
+    "Boolean", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in FMI 2 an
+    Enumeration is an "Integer"); None if it cannot be connected (String, Binary). Kinds in
+    `CONTINUOUS` are extrapolated by the consumer's order, the others held between communication
+    points (order 0)."""
     if fmi_type == "Enumeration":
-        return "Integer" if fmi_version.startswith("2") else None
+        return "Integer" if fmi_version.startswith("2") else "Int64"
     return COUPLED.get(fmi_type)
+
+
+def connection_problem(
+    start: str, out_type: str, out_version: str, end: str, in_type: str, in_version: str
+) -> str | None:
+    """Why output `start` (of FMI type out_type, in an FMU of FMI version out_version) cannot
+    drive input `end`; None if it can. Both ends must have the same type class (FMI 2 Real =
+    FMI 3 Float64, FMI 2 Integer = FMI 3 Int32, as SSP compares them) and be connectable. An FMI 2
+    Enumeration is an Integer, an FMI 3 one an Int64: they do not connect to each other."""
+    if type_class(out_type) != type_class(in_type):
+        return f"type mismatch: {start} is {out_type}, {end} is {in_type}"
+    carried = coupling_kind(out_type, out_version)
+    if carried is None:
+        return f"{start} is {out_type}: connections carry {CONNECTABLE}"
+    other = coupling_kind(in_type, in_version)
+    if other != carried:
+        return (
+            f"type mismatch: {start} is an FMI {out_version} {out_type} (carried as {carried}), {end} an "
+            f"FMI {in_version} {in_type} (carried as {other}); connect enumerations of one FMI version"
+        )
+    return None
+
+
+def stimulus_problem(fmi_type: str, fmi_version: str, kind: str) -> str | None:
+    """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type; None if it
+    can. Numeric and Enumeration inputs take steps; tables (piecewise linear) only continuous ones."""
+    carried = coupling_kind(fmi_type, fmi_version)
+    if carried is None or carried == "Boolean":
+        return f"stimuli drive {STIMULATED} inputs"
+    if kind != "step" and carried not in CONTINUOUS:
+        return f"{_an(fmi_type)} input takes a step stimulus, not a table"
+    return None
+
+
+def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str | None:
+    """Why a stimulus value cannot be set on an input of this type ("not an integer", "outside
+    [low, high]": the runtime converts it to that type); None if it can."""
+    if fmi_type in ("Real", "Float64"):
+        return None
+    if fmi_type == "Float32":
+        return None if abs(value) <= FLOAT32_MAX else f"outside [-{FLOAT32_MAX:g}, {FLOAT32_MAX:g}]"
+    if value != int(value):
+        return "not an integer"
+    typed = "Int32" if fmi_type in ("Integer", "Enumeration") and fmi_version.startswith("2") else fmi_type
+    low, high = INT_RANGES.get("Int64" if typed == "Enumeration" else typed, (-math.inf, math.inf))
+    return None if low <= value <= high else f"outside [{low}, {high}]"
+
+
+def _an(word: str) -> str:
+    return f"an {word}" if word[0] in "AEIOU" else f"a {word}"
 
 
 RECORDED = "Real, Integer, Boolean and Enumeration values (FMI 3: every numeric type)"
 
 
 def recordable(fmi_type: str, fmi_version: str) -> bool:
-    """Whether the runtime can record a variable of this type: what connections carry, and in
-    FMI 3 every numeric type and Enumeration, each read through its own call."""
-    fmi3 = not fmi_version.startswith("2")
-    return coupling_kind(fmi_type, fmi_version) is not None or (
-        fmi3 and fmi_type in NUMERIC | {"Enumeration"}
-    )
+    """Whether the runtime can record a variable of this type: what connections carry (in FMI 3
+    every numeric type and Enumeration, each read through its own call)."""
+    return coupling_kind(fmi_type, fmi_version) is not None
 
 
 def type_class(fmi_type: str) -> str:
@@ -81,10 +154,11 @@ class FmuInfo:
 
 
 def project_fmu_names() -> list[str]:
-    """The project's FMUs: folders fmus/NAME with a model.c (see master.fmubuild)."""
+    """The project's FMUs: folders fmus/NAME with a model.c (see master.fmubuild), those that build
+    as FMI 3.0 only (such as alltypes) included."""
     from master import fmubuild
 
-    return fmubuild.project_fmu_names()
+    return fmubuild.project_fmu_names(3)
 
 
 class SourceError(Exception):
@@ -94,7 +168,8 @@ class SourceError(Exception):
 def resolve_source(source: str, base: Path, inside: Path | None = None, built: dict | None = None) -> Path:
     """The .fmu file a component's source attribute names.
 
-    1. "project:NAME": the project's FMU NAME (fmus/NAME), built if missing or stale.
+    1. "project:NAME": the project's FMU NAME (fmus/NAME), built if missing or stale (as FMI 2.0,
+       or as FMI 3.0 where the model builds only as that).
     2. otherwise a path relative to the folder of the .ssd (`base`); used if that file exists.
     3. otherwise the NAME of a project FMU (a folder fmus/NAME with a model.c): as in 1.
     `inside`: for unpacked archives, the folder a relative path may not leave.
@@ -131,11 +206,11 @@ def _project(name: str, built: dict | None) -> Path:
 def _build(name: str) -> Path | SourceError:
     from master import fmubuild
 
-    names = fmubuild.project_fmu_names()
+    names = fmubuild.project_fmu_names(3)
     if name not in names:
         return SourceError(f'no project FMU "{name}" (the project has: {", ".join(names)})')
     try:
-        return Path(fmubuild.fmu_path(name))
+        return Path(fmubuild.fmu_path(name, fmi=2 if name in fmubuild.project_fmu_names() else 3))
     except Exception as err:  # a failed C build: report it as a problem of this component
         return SourceError(f'cannot build project FMU "{name}": {err}')
 

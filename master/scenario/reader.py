@@ -247,11 +247,12 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
             continue
         links.append(((se, sc, ee, ec), elem))
         ok = True
-        if out.kind != inp.kind:
-            ctx.at(elem, f"type mismatch: {se}.{sc} is {out.type}, {ee}.{ec} is {inp.type}")
-            ok = False
-        elif fmuinfo.coupling_kind(out.type, ctx.comps[se].info.fmi_version) is None:
-            ctx.at(elem, f"{se}.{sc} is {out.type}: connections carry {fmuinfo.CONNECTABLE} signals")
+        problem = fmuinfo.connection_problem(
+            f"{se}.{sc}", out.type, ctx.comps[se].info.fmi_version, f"{ee}.{ec}", inp.type,
+            ctx.comps[ee].info.fmi_version,
+        )  # fmt: skip
+        if problem:
+            ctx.at(elem, problem)
             ok = False
         elif out.unit and inp.unit and out.unit != inp.unit:
             ctx.at(

@@ -17,7 +17,7 @@ from lxml import etree
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import FLOATS, RECORDED, STIMULATED, coupling_kind, recordable
+from .fmuinfo import FLOATS, RECORDED, recordable, stimulus_problem, stimulus_value_problem
 from .model import Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -339,14 +339,10 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
                 " stimuli are for undriven inputs",
             )
             ok = False
-        carried = coupling_kind(var.type, ctx.comps[key[0]].info.fmi_version)
-        if carried not in ("Real", "Integer"):
-            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: stimuli drive {STIMULATED} inputs")
-            ok = False
-        elif carried == "Integer" and kind != "step":
-            ctx.at(
-                se, f"{key[0]}.{key[1]} is {var.type}: an Integer input takes a step stimulus, not a table"
-            )
+        version = ctx.comps[key[0]].info.fmi_version
+        problem = stimulus_problem(var.type, version, kind)
+        if problem:
+            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: {problem}")
             ok = False
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
@@ -366,8 +362,9 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             if times and t <= times[-1]:
                 ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
                 ok = False
-            if var.kind not in FLOATS and v != int(v):
-                ctx.at(pe, f"value {v:g} is not an integer ({key[0]}.{key[1]} is {var.type})")
+            wrong = stimulus_value_problem(var.type, version, v)
+            if wrong:
+                ctx.at(pe, f"value {v:g} is {wrong} ({key[0]}.{key[1]} is {var.type})")
                 ok = False
             times.append(t)
             values.append(v)

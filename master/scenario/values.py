@@ -4,20 +4,10 @@ from __future__ import annotations
 
 import math
 
-from .fmuinfo import FLOATS, Var
+from .fmuinfo import FLOATS, INT_RANGES, Var
 from .model import Value
 
 SETTABLE_CAUSALITIES = {"parameter", "structuralParameter", "input"}
-_INT_RANGES = {
-    "Int8": (-(2**7), 2**7 - 1),
-    "UInt8": (0, 2**8 - 1),
-    "Int16": (-(2**15), 2**15 - 1),
-    "UInt16": (0, 2**16 - 1),
-    "Int32": (-(2**31), 2**31 - 1),
-    "UInt32": (0, 2**32 - 1),
-    "Int64": (-(2**63), 2**63 - 1),
-    "UInt64": (0, 2**64 - 1),
-}
 
 
 class BadValue(Exception):
@@ -53,7 +43,7 @@ def from_string(var: Var, text: str) -> Value:
         except ValueError:
             raise BadValue(f'"{text}" is not a number ({var.name} is {var.type})') from None
         return check_range(var, value)
-    if kind in _INT_RANGES:
+    if kind in INT_RANGES:
         try:
             return check_range(var, int(text))
         except ValueError:
@@ -79,7 +69,7 @@ def from_ssv(var: Var, ssv_type: str, text: str, unit: str | None) -> Value:
         if unit and var.unit and unit != var.unit:
             raise BadValue(f'unit mismatch: value in "{unit}", {var.name} is in "{var.unit}"')
         return check_range(var, float(text))
-    if ssv_type == "Integer" and (kind in FLOATS or kind in _INT_RANGES):
+    if ssv_type == "Integer" and (kind in FLOATS or kind in INT_RANGES):
         number = int(text)
         return check_range(var, float(number) if kind in FLOATS else number)
     if ssv_type == "Integer" and kind == "Enumeration":
@@ -112,7 +102,7 @@ def check_range(var: Var, value: float | int) -> float | int:
     """`value` if it is finite and inside [min, max] of `var` (and of its integer type)."""
     if isinstance(value, float) and not math.isfinite(value):
         raise BadValue(f"{value} is not a finite number")
-    low, high = _INT_RANGES.get(var.kind, (-math.inf, math.inf))
+    low, high = INT_RANGES.get(var.kind, (-math.inf, math.inf))
     if var.min is not None:
         low = max(low, float(var.min))
     if var.max is not None:
