@@ -2,7 +2,8 @@
 AB3 baseline of the bench (its error against the Model Exchange reference and its wall time), then
 `master tune` at that error as the tolerance, and the ratio of the baseline's wall time to the
 fastest multirate configuration's and to the fastest of all (target: multirate in at most a third
-of the baseline's time). Wall times: serial backend, median of --repeats runs, one process.
+of the baseline's time). Wall times: serial backend, the baseline and the winners timed in turn,
+--repeats rounds, medians; one process.
 
     python benchmarks/tune_vs_baseline.py [--repeats 5] [scene ...]
 """
@@ -14,13 +15,23 @@ import os
 import statistics
 from pathlib import Path
 
-from master.api import load_scenario
+from master.api import load_scenario, run
 from master.evidence import bench
 from master.evidence.reference import reference
 from master.tune import report, tune
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = ("hydraulic-manipulator", "dc-motor-arm")
+
+
+def interleaved(scenes: dict[str, object], repeats: int) -> dict[str, float]:
+    """Median wall time (s) of each scene, timed in turn `repeats` rounds (serial backend): load on
+    the machine then falls on all of them alike."""
+    times: dict[str, list[float]] = {k: [] for k in scenes}
+    for _ in range(repeats):
+        for k, sc in scenes.items():
+            times[k].append(run(sc, backend="serial").summary.wall_time)
+    return {k: statistics.median(v) for k, v in times.items()}
 
 
 def main() -> None:
@@ -34,26 +45,32 @@ def main() -> None:
         sc = load_scenario(REPO / "models" / name / "SystemStructure.ssd")
         p = bench.profile_for(sc)
         ref = reference(bench.base_scene(sc, p))
-        row = bench.measure(sc, p, p.baseline, ref, a.repeats)
-        result = tune(sc, row.error, repeats=a.repeats)
+        base = bench.measure(sc, p, p.baseline, ref, 1)
+        result = tune(sc, base.error, repeats=a.repeats)
         if a.report:
             print(report(result))
-        multi = next((ch for ch in result.choices if ch.timed and ch.trial.config.ratio > 1), None)
-        base_t = statistics.median(row.wall_times)
-        print(f"\n{name}: baseline {p.baseline.label}: error {row.error:.3g}, {base_t * 1e3:.3g} ms")
+        print(f"\n{name}: baseline {p.baseline.label}: error {base.error:.3g}")
         if result.best is None:
             print("  tune found nothing within the baseline's error")
             continue
-        b = result.best
-        print(f"  fastest within it: {b.family} H={float(b.trial.config.macro_step):g} s, error "
-              f"{b.trial.error:.3g}, {b.wall_time * 1e3:.3g} ms: {base_t / b.wall_time:.2f}x the baseline's "
-              "speed")  # fmt: skip
-        if multi is not None:
-            print(f"  fastest multirate: {multi.family} H={float(multi.trial.config.macro_step):g} s, error "
-                  f"{multi.trial.error:.3g}, {multi.wall_time * 1e3:.3g} ms: {base_t / multi.wall_time:.2f}x "
-                  f"(target 3x)")  # fmt: skip
-        else:
-            print("  no multirate configuration (step ratio > 1) within the baseline's error was timed")
+        multi = next((ch for ch in result.choices if ch.timed and ch.trial.config.ratio > 1), None)
+        chosen = {"baseline": p.baseline, "tuned": result.best.trial.config}
+        if multi is not None and multi is not result.best:
+            chosen["multirate"] = multi.trial.config
+        t = interleaved({k: bench.apply(sc, p, c) for k, c in chosen.items()}, a.repeats)
+        print(f"  baseline: {t['baseline'] * 1e3:.3g} ms")
+        for key, ch in (("tuned", result.best), ("multirate", multi)):
+            if ch is None:
+                print("  no multirate configuration (step ratio > 1) within the baseline's error was timed")
+                continue
+            if key not in t:
+                print("  multirate: the tuned one")
+                continue
+            c = ch.trial.config
+            speed = t["baseline"] / t[key]
+            print(f"  {key}: {ch.family}, H={float(c.macro_step):g} s: error {ch.trial.error:.3g}, "
+                  f"{t[key] * 1e3:.3g} ms: {speed:.2f}x the baseline's speed (target 3x)")  # fmt: skip
+        print(f"  load average now {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
