@@ -26,11 +26,18 @@ SCENES = ("hydraulic-manipulator", "dc-motor-arm")
 
 def interleaved(scenes: dict[str, object], repeats: int) -> dict[str, float]:
     """Median wall time (s) of each scene, timed in turn `repeats` rounds (serial backend): load on
-    the machine then falls on all of them alike."""
+    the machine then falls on all of them alike. Prints each one's median time inside each FMU."""
     times: dict[str, list[float]] = {k: [] for k in scenes}
+    inside: dict[str, dict[str, list[float]]] = {k: {} for k in scenes}
     for _ in range(repeats):
         for k, sc in scenes.items():
-            times[k].append(run(sc, backend="serial").summary.wall_time)
+            s = run(sc, backend="serial").summary
+            times[k].append(s.wall_time)
+            for fmu, t in s.fmu_time.items():
+                inside[k].setdefault(fmu, []).append(t)
+    for k, per in inside.items():
+        calls = ", ".join(f"{fmu} {statistics.median(t) * 1e3:.3g} ms" for fmu, t in per.items())
+        print(f"  {k}: inside the FMUs: {calls}")
     return {k: statistics.median(v) for k, v in times.items()}
 
 
