@@ -118,6 +118,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="wall seconds allowed per simulated second (1: real time)")  # fmt: skip
     t.add_argument("--pilot-time", metavar="T", help="simulated s of each pilot run (default: the bench's)")
     t.add_argument("--repeats", type=int, default=3, help="timed runs of each finalist (median)")
+    t.add_argument("--rounds", type=int, default=None, metavar="N",
+                   help="rounds of coordinate search at most (default 12; fewer: quicker)")  # fmt: skip
     t.add_argument("-o", "--out", metavar="FILE",
                    help="tuned scenario (default: beside the original, NAME.tuned.ssd / .ssp)")  # fmt: skip
 
@@ -341,9 +343,12 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
         raise api.UsageError(f"--out {out}: a new {source.suffix} file, not the original")
     if args.repeats < 1:
         raise api.UsageError(f"--repeats {args.repeats}: at least 1")
+    if args.rounds is not None and args.rounds < 0:
+        raise api.UsageError(f"--rounds {args.rounds}: 0 or more")
     pilot = api._parse_time("--pilot-time", args.pilot_time) if args.pilot_time else None
     sc = api.load_scenario(source)
-    result = tune.tune(sc, args.tolerance, args.real_time_budget, pilot, args.repeats)
+    rounds = tune.ROUNDS if args.rounds is None else args.rounds
+    result = tune.tune(sc, args.tolerance, args.real_time_budget, pilot, args.repeats, rounds)
     text = tune.report(result)
     report = out.with_suffix(".txt")
     report.write_text(text + "\n")

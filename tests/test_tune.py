@@ -149,6 +149,17 @@ def test_the_writer_keeps_an_archive_an_archive(tmp_path):
     assert api.load_scenario(out).macro_step == Fraction(1, 200)
 
 
+def test_a_real_time_budget_nothing_meets_writes_the_report_and_no_scenario(tmp_path):
+    folder = _copy(tmp_path, OSCILLATOR)
+    proc = subprocess.run([str(BIN / "master"), "tune", str(folder / "oscillator.ssd"), "--tolerance", "1e-3",
+                           "--real-time-budget", "1e-9", "--rounds", "1", "--repeats", "1"],
+                          capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("error: the fastest configuration within 0.001")
+    assert "real-time budget 1e-09 s per simulated s: OVER" in (folder / "oscillator.tuned.txt").read_text()
+    assert not (folder / "oscillator.tuned.ssd").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
