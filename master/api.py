@@ -270,8 +270,11 @@ def _write_metadata(output: str | Path | None, summary, sc: Scenario, p: Plan) -
 
 def _units(sc: Scenario, record: tuple[tuple[str, str], ...]) -> dict[str, str | None]:
     """Unit of each recorded column "component.variable" from the FMUs' model descriptions."""
+    from master.scenario.fmuinfo import lookup
+
     described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
-    return {f"{c}.{v}": getattr(described[c].get(v), "unit", None) for c, v in record}
+    found = {(c, v): lookup(described[c], v) for c, v in record}  # an array element: the array's unit
+    return {f"{c}.{v}": found[c, v][0].unit if found[c, v] else None for c, v in record}
 
 
 def validate(path: str | Path) -> list:
@@ -308,8 +311,9 @@ def fmu_info(path: Path) -> str:
         f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit",
     ]
     for v in variables_of(md).values():
+        kind = v.type + (f"[{','.join(str(n) for n in v.shape)}]" if v.shape else "")  # an FMI 3 array
         lines.append(
-            f"  {v.name:<24} {v.causality:<20} {v.variability:<12} {v.type:<12} "
+            f"  {v.name:<24} {v.causality:<20} {v.variability:<12} {kind:<12} "
             f"{v.start or '':<12} {v.unit or ''}"
         )
     return "\n".join(lines)

@@ -302,9 +302,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         print(api.info(args.path))
         return 0
     if args.command == "plot":
-        from fmpy.util import read_csv
-
-        from master.recorder import plot_result
+        from master.recorder import plot_result, read_csv
 
         csv = Path(args.csv)
         if not csv.is_file():

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import math
 import shutil
 import tempfile
 import zipfile
@@ -62,7 +63,8 @@ class FmuError(Exception):
 
 @dataclass(frozen=True)
 class VariableInfo:
-    """What the master needs to know about one scalar variable."""
+    """What the master needs to know about one variable (a scalar, or an FMI 3 array: one value
+    reference for all its elements)."""
 
     name: str
     vr: int
@@ -76,6 +78,12 @@ class VariableInfo:
     fmi_type: str = (
         ""  # as the FMU spells it: Real, Float64, Float32, Int8, ..., Enumeration (fmuinfo.coupling_kind)
     )
+    shape: tuple[int, ...] = ()  # FMI 3 array: its dimensions (the start sizes); () for a scalar
+
+    @property
+    def size(self) -> int:
+        """Number of values: the product of the dimensions, 1 for a scalar."""
+        return math.prod(self.shape)
 
 
 FMI3_INTEGERS = ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
@@ -139,11 +147,10 @@ def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescriptio
 
 
 def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
-    """Scalar variables of a model description by name (arrays of FMI 3 are skipped)."""
+    """Variables of a model description by name; an FMI 3 array with its shape (the sizes its
+    dimensions start with, read by fmpy: a Dimension's start or its structural parameter's)."""
     out: dict[str, VariableInfo] = {}
     for v in md.modelVariables:
-        if getattr(v, "dimensions", None):
-            continue
         out[v.name] = VariableInfo(
             name=v.name,
             vr=int(v.valueReference),
@@ -155,6 +162,7 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
             unit=v.unit if v.unit is not None else (v.declaredType.unit if v.declaredType else None),
             description=v.description,
             fmi_type=v.type,
+            shape=tuple(int(n) for n in getattr(v, "shape", ()) or ()),
         )
     return out
 
@@ -414,23 +422,72 @@ class Fmu:
             v = self.variables.get(n)
             if v is None:
                 raise FmuError(f"{self.name}: no variable {n!r} in {self.path.name}")
-            if v.type != "Real":
-                raise FmuError(f"{self.name}.{n}: type {v.type}, a Real is needed here")
+            if v.type != "Real" or v.shape:
+                raise FmuError(
+                    f"{self.name}.{n}: type {v.type}{list(v.shape) or ''}, a scalar Real is needed here"
+                )
         return RealPort(self, names)
 
     # -- typed values (set-up, recording of non-Real variables) ---------------------------------
     def set_values(self, values: dict[str, object]) -> None:
-        """Set parameters / start values by name, converting each to the variable's type."""
+        """Set parameters / start values by name, converting each to the variable's type. An
+        element of an FMI 3 array is named y[i,j] (master.scenario.fmuinfo.element_names): the
+        array is set whole, its other elements at their start values."""
+        from master.scenario.fmuinfo import lookup, typed
+
+        arrays: dict[str, tuple[VariableInfo, dict[int, object]]] = {}
         for name, value in values.items():
-            v = self.variables.get(name)
-            if v is None:
+            found = lookup(self.variables, name)
+            if found is None:
                 raise FmuError(f"{self.name}: no variable {name!r} in {self.path.name}")
+            v, position = found
             if v.causality in ("calculatedParameter", "independent") or v.variability == "constant":
                 raise FmuError(f"{self.name}.{name}: a {v.causality} {v.variability} variable cannot be set")
+            if v.shape and position is None:
+                raise FmuError(
+                    f"{self.name}.{name} is an array ({typed(v.fmi_type, v.shape)}): set its elements, "
+                    f"{name}[...], one by one"
+                )
+            if position is not None:
+                arrays.setdefault(v.name, (v, {}))[1][position] = value
+                continue
             try:
                 self._set_one(v, value)
             except FMICallException as e:
                 raise FmuError(self.describe(f"cannot set {name} = {value!r}: {e}")) from e
+        for v, elements in arrays.values():
+            try:
+                self._set_array(v, elements)
+            except FMICallException as e:
+                raise FmuError(self.describe(f"cannot set {v.name}: {e}")) from e
+
+    def _set_array(self, v: VariableInfo, elements: dict[int, object]) -> None:
+        """An FMI 3 array through one call of its type: the elements given (position in row-major
+        order -> value), the others at their start values."""
+        kind = _fmi3_kind(v)
+        starts = (v.start or "").split()
+        if len(starts) != v.size:
+            raise FmuError(f"{self.name}.{v.name}: {len(starts)} start values for {v.size} elements")
+        if kind in ("Float64", "Float32"):
+            values = [float(x) for x in starts]
+        elif kind in FMI3_INTEGERS:
+            values = [int(x) for x in starts]
+        elif kind == "Boolean":
+            values = [x.lower() in ("true", "1") for x in starts]
+        else:
+            raise FmuError(f"{self.name}.{v.name}: arrays of type {v.fmi_type} are not supported")
+        for position, value in elements.items():
+            if kind == "Boolean":
+                if isinstance(value, str):
+                    value = value.lower() in ("true", "1")
+                values[position] = bool(value)
+            elif kind in FMI3_INTEGERS:
+                if isinstance(value, float) and not value.is_integer():
+                    raise FmuError(f"{self.name}.{v.name}: {value!r} is not an integer")
+                values[position] = int(value)  # type: ignore[arg-type]
+            else:
+                values[position] = float(value)  # type: ignore[arg-type]
+        getattr(self.slave, f"set{kind}")([v.vr], values)
 
     def _set_one(self, v: VariableInfo, value: object) -> None:
         """One value through the call of the variable's own type (FMI 3: Float32, Int8 ... UInt64,

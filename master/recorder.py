@@ -2,14 +2,17 @@
 
 Rows (time in s, then one column per "component.variable") are buffered in a preallocated
 chunk and streamed to disk when it fills: a raw float64 file (read back as a numpy structured
-array) and, when asked, a CSV file that `fmpy.util.read_csv` reads. Memory stays flat however
-long the run.
+array) and, when asked, a CSV file that `read_csv` reads, and `fmpy.util.read_csv` too unless a
+name holds a comma (an element of an FMI 3 matrix, "c.m[1,2]", quoted: fmpy's reader splits the
+header at every comma). Memory stays flat however long the run.
 """
 
 from __future__ import annotations
 
+import csv
 import shutil
 import tempfile
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -97,6 +100,24 @@ class Recorder:
         """Remove the raw file (the CSV, if any, stays)."""
         self.close()
         shutil.rmtree(self.tmpdir, ignore_errors=True)
+
+
+def read_csv(path: str | Path) -> np.ndarray:
+    """A results CSV file (`Recorder`'s, or any of numbers under a header of quoted or plain
+    names) as a structured array with a float64 field per column. ValueError if it is not one."""
+    with open(path, newline="") as f:
+        header = next(csv.reader(f), None)
+        if not header:
+            raise ValueError("no header line")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # no rows: an empty result
+            rows = np.loadtxt(f, delimiter=",", ndmin=2)
+    if rows.size == 0:
+        rows = np.zeros((0, len(header)))
+    if rows.shape[1] != len(header):
+        raise ValueError(f"{len(header)} names in the header, {rows.shape[1]} values a row")
+    dtype = np.dtype([(name, np.float64) for name in header])
+    return np.ascontiguousarray(rows, dtype=np.float64).view(dtype).reshape(-1)
 
 
 @dataclass

@@ -20,9 +20,12 @@ from master.scenario.fmuinfo import (
     STIMULATED,
     connection_problem,
     coupling_kind,
+    element_names,
+    lookup,
     recordable,
     stimulus_problem,
     stimulus_value_problem,
+    typed,
 )
 from master.scenario.model import Scenario, Stimulus
 
@@ -204,7 +207,8 @@ def build_plan(
     variables: dict[str, dict[str, VariableInfo]],
     capabilities: dict[str, Capability] | None = None,
 ) -> Plan:
-    """Schedule `sc`. `variables[component]` are the scalar variables of its FMU."""
+    """Schedule `sc`. `variables[component]` are the variables of its FMU (FMI 3 arrays with their
+    shapes: links and the record name each element, `fmuinfo.element_names`)."""
     capabilities = capabilities or {}
     names = [c.name for c in sc.components]
     if len(set(names)) != len(names):
@@ -263,6 +267,7 @@ def build_plan(
             f"connection {cn.start_component}.{cn.start_connector} -> {cn.end_component}.{cn.end_connector}"
         )
         ends = []  # (name, FMI type, FMI version) of the output and of the input
+        shapes = []  # their dimensions (FMI 3 arrays; () for a scalar)
         for comp, var, causal in (
             (cn.start_component, cn.start_connector, "output"),
             (cn.end_component, cn.end_connector, "input"),
@@ -272,17 +277,18 @@ def build_plan(
             v = variables[comp].get(var)
             if v is None:
                 raise _err(sc, f"{where}: component {comp} has no variable {var!r}")
-            typed, version = v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version
-            if coupling_kind(typed, version) is None:
-                raise _err(sc, f"{where}: {comp}.{var} is {typed}; connections carry {CONNECTABLE}")
+            fmi_type, version = v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version
+            if coupling_kind(fmi_type, version) is None:
+                raise _err(sc, f"{where}: {comp}.{var} is {fmi_type}; connections carry {CONNECTABLE}")
             if v.causality != causal:
                 raise _err(sc, f"{where}: {comp}.{var} has causality {v.causality}, {causal} needed")
-            ends.append((f"{comp}.{var}", typed, version))
-        kinds = [coupling_kind(typed, version) for _, typed, version in ends]
+            ends.append((f"{comp}.{var}", fmi_type, version))
+            shapes.append(v.shape)
+        kinds = [coupling_kind(fmi_type, version) for _, fmi_type, version in ends]
         if kinds[0] != kinds[1]:
             raise _err(sc, f"{where}: {_article(kinds[0])} output cannot drive {_article(kinds[1])} input")
-        problem = connection_problem(*ends[0], *ends[1])
-        if problem:  # the same kind, types of different classes (an FMI 3 Enumeration and an Int64)
+        problem = connection_problem(*ends[0], *ends[1], *shapes)
+        if problem:  # the same kind, types of different classes or arrays of different shapes
             raise _err(sc, f"{where}: {problem}")
         key_in = (cn.end_component, cn.end_connector)
         if key_in in driven:
@@ -294,9 +300,10 @@ def build_plan(
             raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
         if kinds[0] not in CONTINUOUS:
             order_ = 0  # discrete signals (integers, Booleans) are held between communication points
-        groups.setdefault((cn.start_component, cn.end_component, order_, kinds[0]), []).append(
-            (cn.start_connector, cn.end_connector)
-        )
+        # an array drives an array of the same shape element by element: a pair per element
+        outs, ins = element_names(cn.start_connector, shapes[0]), element_names(cn.end_connector, shapes[1])
+        pairs = zip(outs, ins, strict=True)
+        groups.setdefault((cn.start_component, cn.end_component, order_, kinds[0]), []).extend(pairs)
     links = []
     startup_steps = 0
     for (src, dst, order_, kind), pairs in groups.items():
@@ -340,21 +347,23 @@ def build_plan(
         if s.component not in variables or s.variable not in variables[s.component]:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: no such variable")
         v = variables[s.component][s.variable]
-        typed, version = v.fmi_type or v.type, capabilities.get(s.component, Capability()).fmi_version
+        fmi_type, version = v.fmi_type or v.type, capabilities.get(s.component, Capability()).fmi_version
         if v.causality != "input":
             raise _err(
                 sc,
                 f"stimulus on {s.component}.{s.variable}: a {STIMULATED} input is needed, "
-                f"got {v.causality} {typed}",
+                f"got {v.causality} {fmi_type}",
             )
-        problem = stimulus_problem(typed, version, s.kind)
+        problem = stimulus_problem(fmi_type, version, s.kind, v.shape)
         if problem:
-            raise _err(sc, f"stimulus on {s.component}.{s.variable}: it is {typed}; {problem}")
+            raise _err(
+                sc, f"stimulus on {s.component}.{s.variable}: it is {typed(fmi_type, v.shape)}; {problem}"
+            )
         for value in s.values:
-            wrong = stimulus_value_problem(typed, version, float(value))
+            wrong = stimulus_value_problem(fmi_type, version, float(value))
             if wrong:
                 raise _err(
-                    sc, f"stimulus on {s.component}.{s.variable}: value {value:g} is {wrong} ({typed})"
+                    sc, f"stimulus on {s.component}.{s.variable}: value {value:g} is {wrong} ({fmi_type})"
                 )
         if (s.component, s.variable) in driven:
             raise _err(sc, f"stimulus on {s.component}.{s.variable}: the input is already driven")
@@ -372,7 +381,7 @@ def build_plan(
         return recordable(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version)
 
     record = tuple(sc.record)
-    if not record:  # every output the runtime can record; a note names the others
+    if not record:  # every output the runtime can record (arrays too); a note names the others
         outputs = [
             (c.name, v) for c in sc.components for v in variables[c.name].values() if v.causality == "output"
         ]
@@ -380,17 +389,24 @@ def build_plan(
         skipped = [f"{c}.{v.name} ({v.fmi_type or v.type})" for c, v in outputs if not can_record(c, v)]
         if skipped:
             notes.append(f"not recorded: {', '.join(skipped)}; the runtime records {RECORDED}")
+    columns: list[tuple[str, str]] = []  # an array: a column per element, y[1], y[2], ...
     for comp, var in record:
         if comp not in variables:
             raise _err(sc, f"record {comp}.{var}: no component {comp!r}")
-        v = variables[comp].get(var)
-        if v is None:
+        found = lookup(variables[comp], var)  # a variable, or one element of an array
+        if found is None:
             raise _err(sc, f"record {comp}.{var}: component {comp} has no variable {var!r}")
+        v, position = found
         if not can_record(comp, v):
             raise _err(
                 sc,
                 f"record {comp}.{var}: it is {v.fmi_type or v.type}; the runtime records {RECORDED}",
             )
+        for name in element_names(v.name, v.shape) if position is None else [var]:
+            if (comp, name) in columns:
+                raise _err(sc, f"record {comp}.{var}: recorded twice")
+            columns.append((comp, name))
+    record = tuple(columns)
     every = 1
     if sc.record_interval is not None:
         ri = Fraction(sc.record_interval)

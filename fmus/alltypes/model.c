@@ -14,10 +14,14 @@
  *   y_enumeration = u_enumeration mod 6 + 1 (Enumeration "Solver", values 1..6: the next one)
  *   y_vec     = 2 u_vec                     (Float64 vectors of 3)
  *   y_mat     = p_mat transposed            (Float64 2x2 matrices, row major)
+ *   y_ivec    = u_ivec + p_int32            (Int32 vectors of 2, saturated)
+ *   wave      = (sin t, cos 3t, t^3)        (a Float64 vector of 3 that depends on time only)
+ *   ticks     = (k, -2 k), k = round(10 t)  (an Int32 vector of 2 that depends on time only)
  *   x' = u_float64, x(0) = 0                (continuous state, output x)
  * When the step that reaches t >= stop_at completes, the model ends the simulation
  * (fmi3DoStep: fmi3OK with *terminateSimulation = fmi3True).
  */
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -44,6 +48,7 @@ enum {
     VR_P_MAT, VR_Y_MAT,
     VR_STOP_AT,
     VR_X, VR_DER_X,
+    VR_U_IVEC, VR_Y_IVEC, VR_WAVE, VR_TICKS,
     N_VARIABLES
 };
 
@@ -53,10 +58,14 @@ enum {
     R_U_FLOAT32 = R_MODEL_START, R_Y_FLOAT32, R_P_FLOAT32,
     R_U_FLOAT64, R_Y_FLOAT64, R_P_FLOAT64,
     R_STOP_AT, R_X, R_DER_X,
-    R_U_VEC, R_Y_VEC = R_U_VEC + 3, R_P_MAT = R_Y_VEC + 3, R_Y_MAT = R_P_MAT + 4,
-    N_REALS = R_Y_MAT + 4
+    R_U_VEC, R_Y_VEC = R_U_VEC + 3, R_P_MAT = R_Y_VEC + 3, R_Y_MAT = R_P_MAT + 4, R_WAVE = R_Y_MAT + 4,
+    N_REALS = R_WAVE + 3
 };
-enum { I_U_INT32 = I_MODEL_START, I_Y_INT32, I_P_INT32, I_U_ENUMERATION, I_Y_ENUMERATION, N_INTEGERS };
+enum {
+    I_U_INT32 = I_MODEL_START, I_Y_INT32, I_P_INT32, I_U_ENUMERATION, I_Y_ENUMERATION,
+    I_U_IVEC, I_Y_IVEC = I_U_IVEC + 2, I_TICKS = I_Y_IVEC + 2,
+    N_INTEGERS = I_TICKS + 2
+};
 enum { W_INT8, W_UINT8 = 3, W_INT16 = 6, W_UINT16 = 9, W_UINT32 = 12, W_INT64 = 15, N_INT64S = 18 }; /* u, y, p */
 enum { Q_U_UINT64, Q_Y_UINT64, Q_P_UINT64, N_UINT64S };
 enum { B_U, B_Y, N_BOOLEANS };
@@ -80,7 +89,8 @@ SAME(VR_U_STRING, 34);
 SAME(VR_U_BINARY, 36);
 SAME(VR_U_ENUMERATION, 38);
 SAME(VR_U_VEC, 40);
-SAME(N_VARIABLES, 47);
+SAME(VR_U_IVEC, 47);
+SAME(N_VARIABLES, 51);
 
 #define INPUT(name, type, variability, slot, start, start_string, description)                                 \
     {name, type, C_INPUT, variability, I_DEFAULT, slot, start, start_string, -INFINITY, INFINITY, NULL,        \
@@ -129,10 +139,15 @@ static const Variable VARIABLES[N_VARIABLES] = {
      "state: the integral of u_float64, x(0) = 0", NO_STATE, "states"},
     {"der(x)", T_FLOAT64, C_LOCAL, V_CONTINUOUS, I_CALCULATED, R_DER_X, 0.0, NULL, -INFINITY, INFINITY, NULL,
      "derivative of x: u_float64", VR_X, "5"},
+    INPUT("u_ivec", T_INT32, V_DISCRETE, I_U_IVEC, 0.0, NULL, "Int32 vector input"),
+    OUTPUT("y_ivec", T_INT32, V_DISCRETE, I_Y_IVEC, "u_ivec + p_int32, saturated", "47"),
+    OUTPUT("wave", T_FLOAT64, V_CONTINUOUS, R_WAVE, "(sin t, cos 3t, t^3)", ""),
+    OUTPUT("ticks", T_INT32, V_DISCRETE, I_TICKS, "(k, -2 k), k = round(10 t)", ""),
 };
 
 static const int DIMENSIONS[N_VARIABLES][MAX_DIMENSIONS] = {
-    [VR_U_VEC] = {3}, [VR_Y_VEC] = {3}, [VR_P_MAT] = {2, 2}, [VR_Y_MAT] = {2, 2}};
+    [VR_U_VEC] = {3}, [VR_Y_VEC] = {3}, [VR_P_MAT] = {2, 2}, [VR_Y_MAT] = {2, 2},
+    [VR_U_IVEC] = {2}, [VR_Y_IVEC] = {2}, [VR_WAVE] = {3}, [VR_TICKS] = {2}};
 
 static const int STATE_SLOTS[] = {R_X};
 static const int DERIVATIVE_SLOTS[] = {R_DER_X};
@@ -198,6 +213,13 @@ static ModelStatus outputs(Instance *inst, double t, const double *x) {
     for (int k = 0; k < 3; k++) r[R_Y_VEC + k] = 2.0 * r[R_U_VEC + k];
     for (int i = 0; i < 2; i++)
         for (int j = 0; j < 2; j++) r[R_Y_MAT + 2 * i + j] = r[R_P_MAT + 2 * j + i];
+    for (int k = 0; k < 2; k++)
+        n[I_Y_IVEC + k] = (int)clamp((int64_t)n[I_U_IVEC + k] + n[I_P_INT32], INT32_MIN, INT32_MAX);
+    r[R_WAVE] = sin(t);
+    r[R_WAVE + 1] = cos(3.0 * t);
+    r[R_WAVE + 2] = t * t * t;
+    n[I_TICKS] = (int)floor(10.0 * t + 0.5);
+    n[I_TICKS + 1] = -2 * n[I_TICKS];
     return t >= r[R_STOP_AT] ? MODEL_TERMINATE : MODEL_OK;
 }
 

@@ -6,8 +6,9 @@ Times are in seconds.
 from __future__ import annotations
 
 from master.fmu import Fmu
+from master.scenario.fmuinfo import element_names, lookup
 from master.scenario.model import Component, Scenario
-from master.schedule import KINDS, Plan
+from master.schedule import KINDS, Plan, value_kind
 
 
 class SimulationError(Exception):
@@ -44,16 +45,20 @@ def history_capacity(plan: Plan, name: str) -> int:
 
 
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
-    """Variables of `name` read at each communication point: the coupled Real outputs, the
-    recorded Real ones, then the coupled outputs of the other kinds, kind by kind (schedule.KINDS:
-    Integer, Boolean, then the FMI 3 ones read through their own calls; kernel.h's order)."""
+    """The history columns of `name`, read at each communication point: the coupled Real
+    outputs, the recorded Real ones, then the coupled outputs of the other kinds, kind by kind
+    (schedule.KINDS: Integer, Boolean, then the FMI 3 ones read through their own calls;
+    kernel.h's order). An FMI 3 array is a column per element (y[1], y[2], ...), all of them:
+    one call reads it whole; a recorded array of any kind is read into the history too."""
     out: list[str] = []
+    recorded = [lookup(variables, v)[0] for c, v in plan.record if c == name]
     for kind in KINDS:
         for lk in plan.links:
             if lk.source == name and lk.kind == kind:
                 out.extend(o for o in lk.outputs if o not in out)
-        if kind == "Real":
-            out.extend(v for c, v in plan.record if c == name and v not in out and _float64(variables[v]))
+        for v in recorded:  # (arrays are FMI 3 only)
+            if (value_kind(v, "3.0") == kind) if v.shape else (kind == "Real" and _float64(v)):
+                out.extend(e for e in element_names(v.name, v.shape) if e not in out)
     return out
 
 

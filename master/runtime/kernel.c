@@ -49,6 +49,7 @@ void mk_layout(int64_t *sizes) {
     sizes[6] = (int64_t)sizeof(mk_kernel);
     sizes[7] = (int64_t)sizeof(mk_counter);
     sizes[8] = (int64_t)sizeof(mk_shared);
+    sizes[9] = (int64_t)sizeof(mk_call);
 }
 
 static int64_t now_ns(void) {
@@ -198,18 +199,21 @@ static bool row_due(const mk_kernel *k, int64_t n) { return (n + 1) % k->record_
 
 /* -- FMI calls by version ----------------------------------------------------------------------- */
 
-static int set_real(const mk_component *c, const uint32_t *vrs, const double *v, int32_t n) {
-    if (c->fmi == 3) return ((fmi3_set_float64 *)c->set_real)(c->instance, vrs, (size_t)n, v, (size_t)n);
+/* Each call moves n values of nvr value references (FMI 3: fewer where arrays are among them, an
+ * array's elements in a row; FMI 2, and every scalar: nvr == n). */
+static int set_real(const mk_component *c, const uint32_t *vrs, int32_t nvr, const double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_set_float64 *)c->set_real)(c->instance, vrs, (size_t)nvr, v, (size_t)n);
     return ((fmi2_set_real *)c->set_real)(c->instance, vrs, (size_t)n, v);
 }
 
-static int get_real(const mk_component *c, const uint32_t *vrs, double *v, int32_t n) {
-    if (c->fmi == 3) return ((fmi3_get_float64 *)c->get_real)(c->instance, vrs, (size_t)n, v, (size_t)n);
+static int get_real(const mk_component *c, const uint32_t *vrs, int32_t nvr, double *v, int32_t n) {
+    if (c->fmi == 3) return ((fmi3_get_float64 *)c->get_real)(c->instance, vrs, (size_t)nvr, v, (size_t)n);
     return ((fmi2_get_real *)c->get_real)(c->instance, vrs, (size_t)n, v);
 }
 
 /* Integer (kind MK_INTEGER) or Boolean values v[0..n) of value references vrs, from doubles. */
-static int set_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, const double *v, int32_t n) {
+static int set_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, const double *v,
+                        int32_t n) {
     int32_t iv[n];
     bool bv[n];
     for (int32_t i = 0; i < n; i++) {
@@ -217,21 +221,22 @@ static int set_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
         bv[i] = v[i] != 0.0;
     }
     if (kind == MK_INTEGER)
-        return c->fmi == 3 ? ((fmi3_set_int32 *)c->set_integer)(c->instance, vrs, (size_t)n, iv, (size_t)n)
+        return c->fmi == 3 ? ((fmi3_set_int32 *)c->set_integer)(c->instance, vrs, (size_t)nvr, iv, (size_t)n)
                            : ((fmi2_set_integer *)c->set_integer)(c->instance, vrs, (size_t)n, iv);
-    return c->fmi == 3 ? ((fmi3_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, bv, (size_t)n)
+    return c->fmi == 3 ? ((fmi3_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)nvr, bv, (size_t)n)
                        : ((fmi2_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, iv);
 }
 
-static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, double *v, int32_t n) {
+static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, double *v,
+                        int32_t n) {
     int32_t iv[n];
     bool bv[n];
     int st;
     if (kind == MK_INTEGER)
-        st = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, vrs, (size_t)n, iv, (size_t)n)
+        st = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, vrs, (size_t)nvr, iv, (size_t)n)
                          : ((fmi2_get_integer *)c->get_integer)(c->instance, vrs, (size_t)n, iv);
     else if (c->fmi == 3)
-        st = ((fmi3_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, bv, (size_t)n);
+        st = ((fmi3_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)nvr, bv, (size_t)n);
     else
         st = ((fmi2_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, iv);
     for (int32_t i = 0; i < n; i++)
@@ -249,10 +254,11 @@ static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
         T x[n];                                                                                      \
         typedef int set_t(void *, const uint32_t *, size_t, const T *, size_t);                     \
         for (int32_t i = 0; i < n; i++) x[i] = (T)v[i];                                              \
-        return ((set_t *)c->set_typed[kind])(c->instance, vrs, (size_t)n, x, (size_t)n);             \
+        return ((set_t *)c->set_typed[kind])(c->instance, vrs, (size_t)nvr, x, (size_t)n);           \
     }
 
-static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, const double *v, int32_t n) {
+static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, const double *v,
+                     int32_t n) {
     switch (kind) {
     case MK_FLOAT32: SET_TYPED(float)
     case MK_INT8: SET_TYPED(int8_t)
@@ -273,7 +279,7 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, c
     {                                                                                                \
         T x[n];                                                                                      \
         typedef int get_t(void *, const uint32_t *, size_t, T *, size_t);                           \
-        st = ((get_t *)c->get_typed[kind])(c->instance, vrs, (size_t)n, x, (size_t)n);               \
+        st = ((get_t *)c->get_typed[kind])(c->instance, vrs, (size_t)nvr, x, (size_t)n);             \
         for (int32_t i = 0; i < n; i++) {                                                            \
             v[i] = (double)x[i];                                                                     \
             if (inexact && *inexact < 0 && (BEYOND)) *inexact = i, *integer = (uint64_t)x[i];        \
@@ -282,7 +288,7 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, c
     }
 #define EXACT_LIMIT (INT64_C(1) << 53)
 
-static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, double *v, int32_t n,
+static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, double *v, int32_t n,
                      int32_t *inexact, uint64_t *integer) {
     int st;
     switch (kind) {
@@ -299,21 +305,73 @@ static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, d
     return st;
 }
 
-/* Set the inputs u[0..n_in) (Real, Integer, Boolean, then the typed ones a kind per call in turn);
- * *call says which call failed. */
+/* Set n values v (of nvr value references) of one kind through the call of that kind; *call says
+ * which call it was. */
+static int set_kind(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, const double *v,
+                    int32_t n, int32_t *call) {
+    switch (kind) {
+    case MK_REAL_SAMPLE: *call = MK_CALL_SET_REAL; return set_real(c, vrs, nvr, v, n);
+    case MK_INTEGER: *call = MK_CALL_SET_INTEGER; return set_discrete(c, kind, vrs, nvr, v, n);
+    case MK_BOOLEAN: *call = MK_CALL_SET_BOOLEAN; return set_discrete(c, kind, vrs, nvr, v, n);
+    default: *call = TYPED_CALL(MK_CALL_SET_TYPED, kind); return set_typed(c, kind, vrs, nvr, v, n);
+    }
+}
+
+/* Set the inputs u[0..n_in) (Real, Integer, Boolean, then the typed ones a kind per call in turn;
+ * with FMI 3 arrays among them, the calls in_calls); *call says which call failed. */
 static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
     const int32_t nr = c->n_in_real, ni = c->n_in_integer, nt = c->n_in_typed, nb = c->n_in - nr - ni - nt;
     int st = STATUS_OK;
-    if (nr && (st = set_real(c, c->in_vrs, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
-    if (ni && (st = set_discrete(c, MK_INTEGER, c->in_vrs + nr, u + nr, ni)) > STATUS_OK)
+    if (c->n_in_calls) {
+        for (int32_t g = 0; g < c->n_in_calls; g++) {
+            const mk_call *k = &c->in_calls[g];
+            int32_t which = 0;
+            if ((st = set_kind(c, k->kind, k->vrs, k->n_vrs, u + k->first, k->n_values, &which)) > STATUS_OK)
+                return *call = which, st;
+        }
+        return st;
+    }
+    if (nr && (st = set_real(c, c->in_vrs, nr, u, nr)) > STATUS_OK) return *call = MK_CALL_SET_REAL, st;
+    if (ni && (st = set_discrete(c, MK_INTEGER, c->in_vrs + nr, ni, u + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_SET_INTEGER, st;
-    if (nb && (st = set_discrete(c, MK_BOOLEAN, c->in_vrs + nr + ni, u + nr + ni, nb)) > STATUS_OK)
+    if (nb && (st = set_discrete(c, MK_BOOLEAN, c->in_vrs + nr + ni, nb, u + nr + ni, nb)) > STATUS_OK)
         return *call = MK_CALL_SET_BOOLEAN, st;
     for (int32_t i = c->n_in - nt, end; i < c->n_in; i = end) {
         const int32_t kind = c->in_kinds[i - (c->n_in - nt)];
         for (end = i + 1; end < c->n_in && c->in_kinds[end - (c->n_in - nt)] == kind;) end++;
-        if ((st = set_typed(c, kind, c->in_vrs + i, u + i, end - i)) > STATUS_OK)
+        if ((st = set_typed(c, kind, c->in_vrs + i, end - i, u + i, end - i)) > STATUS_OK)
             return *call = TYPED_CALL(MK_CALL_SET_TYPED, kind), st;
+    }
+    return st;
+}
+
+/* The outputs through the calls out_calls (FMI 3 arrays among them), as get_outputs. */
+static int get_calls(const mk_component *c, double *row, int32_t *call, int32_t *inexact, uint64_t *integer) {
+    int st = STATUS_OK;
+    *inexact = -1;
+    for (int32_t g = 0; g < c->n_out_calls; g++) {
+        const mk_call *k = &c->out_calls[g];
+        double *v = row + k->first;
+        int32_t bad = -1;
+        switch (k->kind) {
+        case MK_REAL_SAMPLE:
+            *call = MK_CALL_GET_REAL;
+            st = get_real(c, k->vrs, k->n_vrs, v, k->n_values);
+            break;
+        case MK_INTEGER:
+        case MK_BOOLEAN:
+            *call = k->kind == MK_INTEGER ? MK_CALL_GET_INTEGER : MK_CALL_GET_BOOLEAN;
+            st = get_discrete(c, k->kind, k->vrs, k->n_vrs, v, k->n_values);
+            break;
+        default:
+            *call = TYPED_CALL(MK_CALL_GET_TYPED, k->kind);
+            st = get_typed(c, k->kind, k->vrs, k->n_vrs, v, k->n_values, &bad, integer);
+        }
+        if (st > STATUS_OK) return st;
+        if (bad >= 0) {
+            *inexact = k->first + bad;
+            break;
+        }
     }
     return st;
 }
@@ -324,17 +382,18 @@ static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
 static int get_outputs(const mk_component *c, double *row, int32_t *call, int32_t *inexact, uint64_t *integer) {
     const int32_t nr = c->n_out_real, ni = c->n_out_integer, nt = c->n_out_typed, nb = c->n_out - nr - ni - nt;
     int st = STATUS_OK;
-    if (nr && (st = get_real(c, c->out_vrs, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
-    if (ni && (st = get_discrete(c, MK_INTEGER, c->out_vrs + nr, row + nr, ni)) > STATUS_OK)
+    if (c->n_out_calls) return get_calls(c, row, call, inexact, integer);
+    if (nr && (st = get_real(c, c->out_vrs, nr, row, nr)) > STATUS_OK) return *call = MK_CALL_GET_REAL, st;
+    if (ni && (st = get_discrete(c, MK_INTEGER, c->out_vrs + nr, ni, row + nr, ni)) > STATUS_OK)
         return *call = MK_CALL_GET_INTEGER, st;
-    if (nb && (st = get_discrete(c, MK_BOOLEAN, c->out_vrs + nr + ni, row + nr + ni, nb)) > STATUS_OK)
+    if (nb && (st = get_discrete(c, MK_BOOLEAN, c->out_vrs + nr + ni, nb, row + nr + ni, nb)) > STATUS_OK)
         return *call = MK_CALL_GET_BOOLEAN, st;
     *inexact = -1;
     for (int32_t i = c->n_out - nt, end; i < c->n_out; i = end) {
         const int32_t kind = c->out_kinds[i - (c->n_out - nt)];
         int32_t bad = -1;
         for (end = i + 1; end < c->n_out && c->out_kinds[end - (c->n_out - nt)] == kind;) end++;
-        if ((st = get_typed(c, kind, c->out_vrs + i, row + i, end - i, &bad, integer)) > STATUS_OK)
+        if ((st = get_typed(c, kind, c->out_vrs + i, end - i, row + i, end - i, &bad, integer)) > STATUS_OK)
             return *call = TYPED_CALL(MK_CALL_GET_TYPED, kind), st;
         if (bad >= 0) {
             *inexact = i + bad;
@@ -407,7 +466,7 @@ static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *
         }
         break;
     default:
-        status = get_typed(c, kind, &vr, out, 1, NULL, NULL);
+        status = get_typed(c, kind, &vr, 1, out, 1, NULL, NULL);
     }
     return status;
 }
@@ -648,30 +707,23 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const mk_component *src = &k->components[lk->source];
         const double *row = src->hist + (((n + 1) * lk->k_source) % src->cap) * src->n_out;
         for (int32_t i = 0; i < lk->n_cols; i++) c->scratch[i] = row[lk->columns[i]];
-        const uint32_t *vrs = c->in_vrs + lk->slot0;
         const int32_t typed = c->n_in - c->n_in_typed; /* a link's inputs are of one kind */
-        if (lk->slot0 < c->n_in_real) {
-            call = MK_CALL_SET_REAL;
-            st = set_real(c, vrs, c->scratch, lk->n_cols);
-        } else if (lk->slot0 >= typed) {
-            int32_t kind = c->in_kinds[lk->slot0 - typed];
-            call = TYPED_CALL(MK_CALL_SET_TYPED, kind);
-            st = set_typed(c, kind, vrs, c->scratch, lk->n_cols);
-        } else {
-            int32_t kind = lk->slot0 < c->n_in_real + c->n_in_integer ? MK_INTEGER : MK_BOOLEAN;
-            call = kind == MK_INTEGER ? MK_CALL_SET_INTEGER : MK_CALL_SET_BOOLEAN;
-            st = set_discrete(c, kind, vrs, c->scratch, lk->n_cols);
-        }
+        const int32_t kind = lk->slot0 < c->n_in_real                    ? MK_REAL_SAMPLE
+                             : lk->slot0 >= typed                        ? c->in_kinds[lk->slot0 - typed]
+                             : lk->slot0 < c->n_in_real + c->n_in_integer ? MK_INTEGER
+                                                                         : MK_BOOLEAN;
+        st = set_kind(c, kind, lk->vrs, lk->n_vrs, c->scratch, lk->n_cols, &call);
     }
     double *row = c->hist + (j % c->cap) * c->n_out;
-    const int32_t n64 = c->n_resample - c->n_resample_float32;
+    const int32_t n64 = c->n_resample - c->n_resample_float32, nvr64 = c->n_resample_vrs - c->n_resample_float32_vrs;
     if (st <= STATUS_OK && n64) {
         call = MK_CALL_GET_REAL;
-        st = get_real(c, c->resample_vrs, c->scratch, n64);
+        st = get_real(c, c->resample_vrs, nvr64, c->scratch, n64);
     }
     if (st <= STATUS_OK && c->n_resample_float32) {
         call = TYPED_CALL(MK_CALL_GET_TYPED, MK_FLOAT32);
-        st = get_typed(c, MK_FLOAT32, c->resample_vrs + n64, c->scratch + n64, c->n_resample_float32, NULL, NULL);
+        st = get_typed(c, MK_FLOAT32, c->resample_vrs + nvr64, c->n_resample_float32_vrs, c->scratch + n64,
+                       c->n_resample_float32, NULL, NULL);
     }
     mark_idle(k);
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);

@@ -55,6 +55,18 @@ typedef struct {
     int32_t pad[13];
 } mk_counter;
 
+/* One FMI call of a component with FMI 3 arrays among its inputs or outputs: value references
+ * vrs[0..n_vrs) whose values, n_values of them (an array all its elements, row major; a scalar one),
+ * lie in a row from index `first` of the inputs or of the history row. Kind: MK_REAL_SAMPLE for
+ * Float64, MK_INTEGER (Int32), MK_BOOLEAN or a typed kind. */
+typedef struct {
+    int32_t kind;
+    int32_t first;
+    int32_t n_values;
+    int32_t n_vrs;
+    const uint32_t *vrs;
+} mk_call;
+
 /* One link into a consumer: `n_cols` outputs of `source` drive inputs slot0.. of the consumer.
  *
  * Tables hold, per macro step kind, the sample offsets and weights of every consumer step m:
@@ -70,6 +82,8 @@ typedef struct {
     int32_t n_cols;
     int32_t slot0;
     const int32_t *columns; /* source history column of each driven input */
+    int32_t n_vrs;          /* value references of the driven inputs (fewer than n_cols where FMI 3 */
+    const uint32_t *vrs;    /* arrays are among them: an array's elements share one) */
     int32_t terms;          /* polynomial order + 1 */
     int32_t n_plain;
     int32_t n_relaxed;
@@ -116,11 +130,16 @@ typedef struct {
      * the first n_in_real are Real (FMI 3 Float64), the next n_in_integer Integer (Int32, FMI 2
      * Enumeration), then Boolean ones, and the last n_in_typed of the FMI 3 kinds in_kinds[i]
      * (MK_FLOAT32 ... MK_UINT64, those of one kind together, set one kind per call): discrete ones
-     * travel as exact doubles, held (order 0) */
+     * travel as exact doubles, held (order 0). An FMI 3 array takes a slot per element (in_vrs: its
+     * value reference in each); where arrays are among the inputs, n_in_calls > 0 and the inputs are
+     * set by the calls in_calls (one per kind, each passing its arrays' value references once with
+     * all their elements) instead */
     int32_t n_in;
     int32_t n_in_real, n_in_integer, n_in_typed;
     const int32_t *in_kinds; /* [n_in_typed] */
     const uint32_t *in_vrs;
+    int32_t n_in_calls;
+    const mk_call *in_calls;
     int32_t n_blocks;
     int32_t n_values;
     int32_t feedthrough; /* set the step-end inputs after doStep (outputs depend on inputs) */
@@ -133,11 +152,14 @@ typedef struct {
     int32_t n_stimuli;
     const mk_stimulus *stimuli;
     /* outputs: history ring [cap][n_out]; read after step m only where reads[m]; Real first, then
-     * n_out_integer Integer, then Boolean, then n_out_typed of kinds out_kinds (as for the inputs) */
+     * n_out_integer Integer, then Boolean, then n_out_typed of kinds out_kinds (as for the inputs;
+     * an FMI 3 array a column per element, read by the calls out_calls where n_out_calls > 0) */
     int32_t n_out;
     int32_t n_out_real, n_out_integer, n_out_typed;
     const int32_t *out_kinds; /* [n_out_typed] */
     const uint32_t *out_vrs;
+    int32_t n_out_calls;
+    const mk_call *out_calls;
     double *hist;
     double *hist_previous; /* start-up: the previous sweep's samples, [cap][n_out] */
     int32_t cap;
@@ -152,6 +174,7 @@ typedef struct {
     int32_t resample_always; /* 0: the re-read outputs are recorded, never coupled: only at the
                                 macro steps that record a row */
     int32_t n_resample, n_resample_float32;
+    int32_t n_resample_vrs, n_resample_float32_vrs; /* their value references (arrays: one each) */
     const uint32_t *resample_vrs;
     const int32_t *resample_cols; /* their history columns */
     const uint8_t *link_final;    /* [n_links] 1: wait for the source's resampled sample (the link

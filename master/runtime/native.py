@@ -43,6 +43,7 @@ CALLS = (
     "set_typed",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
+KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
 # FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
 TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 KINDS = 11
@@ -74,6 +75,16 @@ class Shared(C.Structure):
     ]
 
 
+class Call(C.Structure):
+    _fields_ = [
+        ("kind", _i32),
+        ("first", _i32),
+        ("n_values", _i32),
+        ("n_vrs", _i32),
+        ("vrs", C.POINTER(_u32)),
+    ]
+
+
 class Link(C.Structure):
     _fields_ = [
         ("source", _i32),
@@ -82,6 +93,8 @@ class Link(C.Structure):
         ("n_cols", _i32),
         ("slot0", _i32),
         ("columns", C.POINTER(_i32)),
+        ("n_vrs", _i32),
+        ("vrs", C.POINTER(_u32)),
         ("terms", _i32),
         ("n_plain", _i32),
         ("n_relaxed", _i32),
@@ -135,6 +148,8 @@ class Component(C.Structure):
         ("n_in_typed", _i32),
         ("in_kinds", C.POINTER(_i32)),
         ("in_vrs", C.POINTER(_u32)),
+        ("n_in_calls", _i32),
+        ("in_calls", C.POINTER(Call)),
         ("n_blocks", _i32),
         ("n_values", _i32),
         ("feedthrough", _i32),
@@ -152,6 +167,8 @@ class Component(C.Structure):
         ("n_out_typed", _i32),
         ("out_kinds", C.POINTER(_i32)),
         ("out_vrs", C.POINTER(_u32)),
+        ("n_out_calls", _i32),
+        ("out_calls", C.POINTER(Call)),
         ("hist", C.POINTER(_f64)),
         ("hist_previous", C.POINTER(_f64)),
         ("cap", _i32),
@@ -161,6 +178,8 @@ class Component(C.Structure):
         ("resample_always", _i32),
         ("n_resample", _i32),
         ("n_resample_float32", _i32),
+        ("n_resample_vrs", _i32),
+        ("n_resample_float32_vrs", _i32),
         ("resample_vrs", C.POINTER(_u32)),
         ("resample_cols", C.POINTER(_i32)),
         ("link_final", C.POINTER(C.c_uint8)),
@@ -236,7 +255,7 @@ class Kernel(C.Structure):
     ]
 
 
-STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared)
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call)
 
 
 class KernelBuildError(RuntimeError):

@@ -25,7 +25,7 @@ from master.backends.component import (
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.scenario.fmuinfo import CONTINUOUS
+from master.scenario.fmuinfo import CONTINUOUS, lookup
 from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
@@ -277,15 +277,16 @@ class CompiledPlan:
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
         version = "3.0" if fmu.fmi3 else "2.0"
 
-        def kind_of(name: str) -> str | None:
-            return value_kind(fmu.variables[name], version)
+        def kind_of(name: str) -> str | None:  # a variable or an element of an FMI 3 array, y[2]
+            return value_kind(variable(fmu, name), version)
 
         in_names = []
         for kind in KINDS:
             in_names += [i for lk in links if lk.kind == kind for i in lk.inputs]
             in_names += [s.variable for s in stimuli if kind_of(s.variable) == kind]
         in_kinds = [kind_of(n) for n in in_names]
-        in_vrs = [fmu.variables[n].vr for n in in_names]
+        in_vrs = [variable(fmu, n).vr for n in in_names]  # an array's in each of its elements' slots
+        c.n_in_calls, c.in_calls = self._calls(fmu, in_names, in_kinds)
         c.n_in_real, c.n_in_integer = in_kinds.count("Real"), in_kinds.count("Integer")
         typed_in = [native.TYPED[k] for k in in_kinds if k in native.TYPED]
         c.n_in_typed, c.in_kinds = len(typed_in), _ptr(self._array(typed_in, np.int32), C.c_int32)
@@ -295,13 +296,14 @@ class CompiledPlan:
         c.n_out_real, c.n_out_integer = out_kinds.count("Real"), out_kinds.count("Integer")
         typed_out = [native.TYPED[k] for k in out_kinds if k in native.TYPED]
         c.n_out_typed, c.out_kinds = len(typed_out), _ptr(self._array(typed_out, np.int32), C.c_int32)
+        c.n_out_calls, c.out_calls = self._calls(fmu, out, out_kinds)
         self.held[pc.name] = np.array([k not in CONTINUOUS for k in out_kinds], dtype=bool)
         for kind in set(typed_in) | set(typed_out):
             name = next(n for n, k in native.TYPED.items() if k == kind)
             for calls, verb, used in ((c.set_typed, "Set", typed_in), (c.get_typed, "Get", typed_out)):
                 if kind in used and calls[kind] is None:
                     raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi3{verb}{name}")
-        c.feedthrough = int(bool(in_names) and any(o in fmu.feedthrough for o in out))
+        c.feedthrough = int(bool(in_names) and any(variable(fmu, o).name in fmu.feedthrough for o in out))
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
@@ -320,6 +322,7 @@ class CompiledPlan:
             slot = in_names.index(lk.inputs[0])
             src_out = self.outs[lk.source]
             n_plain, n_relaxed, offsets, w, zero = link_tables(lk, blocks)
+            link_vrs = _vrs(fmu, lk.inputs)
             step_s = float(plan.component(lk.source).step)
             scale = [step_s**d for _, d in blocks]
             c_links[i] = native.Link(
@@ -329,6 +332,8 @@ class CompiledPlan:
                 n_cols=len(lk.inputs),
                 slot0=slot,
                 columns=_ptr(self._array([src_out.index(o) for o in lk.outputs], np.int32), C.c_int32),
+                n_vrs=len(link_vrs),
+                vrs=_ptr(self._array(link_vrs, np.uint32), C.c_uint32),
                 terms=lk.order + 1,
                 n_plain=n_plain,
                 n_relaxed=n_relaxed,
@@ -353,7 +358,7 @@ class CompiledPlan:
         c.n_stimuli, c.stimuli = len(stimuli), c_stim
         self._keep += [c_links, c_stim]
 
-        c.out_vrs = _ptr(self._array([fmu.variables[o].vr for o in out], np.uint32), C.c_uint32)
+        c.out_vrs = _ptr(self._array([variable(fmu, o).vr for o in out], np.uint32), C.c_uint32)
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
@@ -362,12 +367,37 @@ class CompiledPlan:
         c.n_resample_float32 = sum(kind_of(o) == "Float32" for o in again)
         coupled = {o for lk in plan.links if lk.source == pc.name for o in lk.outputs}
         c.resample_always = int(bool(coupled & set(again)))  # else only where a row is recorded
-        c.resample_vrs = _ptr(self._array([fmu.variables[o].vr for o in again], np.uint32), C.c_uint32)
+        again_vrs = _vrs(fmu, again)
+        c.n_resample_vrs = len(again_vrs)
+        c.n_resample_float32_vrs = len(_vrs(fmu, [o for o in again if kind_of(o) == "Float32"]))
+        c.resample_vrs = _ptr(self._array(again_vrs, np.uint32), C.c_uint32)
         c.resample_cols = _ptr(self._array([out.index(o) for o in again], np.int32), C.c_int32)
         final = [int(any(o in self.resampled.get(lk.source, ()) for o in lk.outputs)) for lk in links]
         c.link_final = _ptr(self._array(final, np.uint8), C.c_uint8)
         width = max([len(in_names), len(again)] + [len(lk.inputs) for lk in links])
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
+
+    def _calls(self, fmu: Fmu, names: list[str], kinds: list[str | None]):
+        """(n_calls, calls) of kernel.h's mk_call: the inputs or history columns `names` (of
+        value kinds `kinds`, those of one kind together) set or read a kind per call, each FMI 3
+        array by its one value reference with all its elements; (0, NULL) where no array is among
+        them (the kernel's scalar calls then do it)."""
+        if not any(variable(fmu, n).shape for n in names):
+            return 0, None
+        groups: list[tuple[int, int, list[str]]] = []  # (kernel kind, first value, names)
+        for i, (n, kind) in enumerate(zip(names, kinds, strict=True)):
+            code = native.TYPED.get(kind, native.KIND_CODES.get(kind, -1))
+            if not groups or groups[-1][0] != code:
+                groups.append((code, i, []))
+            groups[-1][2].append(n)
+        calls = (native.Call * len(groups))()
+        for g, (code, first, members) in enumerate(groups):
+            vrs = _vrs(fmu, members)
+            calls[g] = native.Call(
+                code, first, len(members), len(vrs), _ptr(self._array(vrs, np.uint32), C.c_uint32)
+            )
+        self._keep.append(calls)
+        return len(groups), calls
 
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
@@ -385,7 +415,7 @@ class CompiledPlan:
 
     def _record(self, column: int, comp: str, var: str) -> native.Record:
         i = self.names.index(comp)
-        if var in self.outs[comp]:
+        if var in self.outs[comp]:  # a sample in the history (every element of an FMI 3 array is)
             return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var))
         fmu = self.fmus[i]
         v = fmu.variables[var]
@@ -495,7 +525,7 @@ class CompiledPlan:
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
         if e.code == native.INEXACT:
             bad = self.outs[name][e.variable]
-            typed = fmu.variables[bad].fmi_type
+            typed = variable(fmu, bad).fmi_type
             value = int(e.integer)
             if typed != "UInt64" and value >= 2**63:  # an Int64 (or an Enumeration): two's complement
                 value -= 2**64
@@ -520,6 +550,25 @@ class CompiledPlan:
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+
+def variable(fmu: Fmu, name: str):
+    """The variable (master.fmu.VariableInfo) of a history column or input slot: a variable's
+    name, or an element y[i,j] of an FMI 3 array y (master.scenario.fmuinfo.element_names)."""
+    return lookup(fmu.variables, name)[0]
+
+
+def _vrs(fmu: Fmu, names: list[str]) -> list[int]:
+    """The value references of consecutive inputs or columns `names`: one per variable, an FMI 3
+    array's elements (which lie in a row) sharing it."""
+    vrs: list[int] = []
+    last = None
+    for n in names:
+        v = variable(fmu, n)
+        if v.name != last:
+            vrs.append(v.vr)
+            last = v.name
+    return vrs
 
 
 def ring_rows(rows: np.ndarray, first: int, end: int) -> np.ndarray:
@@ -630,7 +679,8 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
             continue
         md = read_description(plan.scenario.component(pc.name).fmu_path)
         depend, variables = feedthrough_outputs(md), variables_of(md)
-        kinds = {o: value_kind(variables[o], md.fmiVersion) for o in outs[pc.name] if o in depend}
+        of = {o: lookup(variables, o)[0] for o in outs[pc.name]}  # an array's elements: the array
+        kinds = {o: value_kind(v, md.fmiVersion) for o, v in of.items() if v.name in depend}
         chosen = [o for kind in CONTINUOUS for o in outs[pc.name] if kinds.get(o) == kind]
         if chosen:
             through[pc.name] = chosen

@@ -15,6 +15,7 @@ from lxml import etree
 
 from . import xmlio
 from .context import Context
+from .fmuinfo import FmuInfo, lookup, no_element
 from .model import Value
 from .problems import NS_SSD, NS_SSV, Problems
 from .values import BadValue, from_ssv, from_string, settable
@@ -123,13 +124,14 @@ def _apply(ctx: Context, params: dict[str, dict[str, Value]], entry: Entry) -> N
     c = ctx.comps[comp]
     if c.info is None:
         return
-    var = c.info.variables.get(name)
-    if var is None:
-        ctx.problems.at(
-            shown, param, f'unknown variable: the FMU of {comp} ({c.info.path.name}) has no "{name}"'
-        )
+    found = lookup(c.info.variables, name)
+    if found is None:
+        why = no_element(c.info.variables, name)
+        unknown = f"{comp}.{why}" if why else f'the FMU of {comp} ({c.info.path.name}) has no "{name}"'
+        ctx.problems.at(shown, param, f"unknown variable: {unknown}")
         return
-    why = settable(var)
+    var = found[0]
+    why = settable(var, found[1] is not None) or _sizes(c.info, name)
     if why:
         ctx.problems.at(shown, param, f"cannot bind {comp}.{name}: {why}")
         return
@@ -150,11 +152,14 @@ def _override(ctx: Context, params: dict[str, dict[str, Value]], key: str, text:
     c = ctx.comps[comp]
     if c.info is None:
         return
-    var = c.info.variables.get(name)
-    if var is None:
-        ctx.problems.add(*where, f'unknown variable: the FMU of {comp} ({c.info.path.name}) has no "{name}"')
+    found = lookup(c.info.variables, name)
+    if found is None:
+        why = no_element(c.info.variables, name)
+        unknown = f"{comp}.{why}" if why else f'the FMU of {comp} ({c.info.path.name}) has no "{name}"'
+        ctx.problems.add(*where, f"unknown variable: {unknown}")
         return
-    why = settable(var)
+    var = found[0]
+    why = settable(var, found[1] is not None) or _sizes(c.info, name)
     if why:
         ctx.problems.add(*where, f"cannot set {comp}.{name}: {why}")
         return
@@ -162,3 +167,16 @@ def _override(ctx: Context, params: dict[str, dict[str, Value]], key: str, text:
         params[comp][name] = from_string(var, text)
     except BadValue as err:
         ctx.problems.add(*where, str(err))
+
+
+def _sizes(info: FmuInfo, name: str) -> str | None:
+    """Why `name` cannot be set if it is a structural parameter that sizes FMI 3 arrays: the
+    master takes every array's size from the model description (its start), which a value set
+    here would change (configuration mode is not supported)."""
+    arrays = info.sizes.get(name)
+    if not arrays:
+        return None
+    return (
+        f"it is the size of {', '.join(arrays)}; array sizes are the model description's "
+        "(structural parameters that size arrays are not set)"
+    )

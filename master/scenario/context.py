@@ -7,7 +7,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from .fmuinfo import FmuInfo, Var
+from .fmuinfo import FmuInfo, Var, lookup, no_element
 from .problems import Problems
 
 
@@ -50,6 +50,22 @@ class Context:
         if var is None:
             self.at(elem, f'unknown {what}: the FMU of {comp} ({c.info.path.name}) has no variable "{name}"')
         return var
+
+    def element(self, comp: str, name: str, elem: etree._Element) -> tuple[Var, int | None] | None:
+        """As `variable`, where `name` may also be one element y[i,j] of an FMI 3 array y:
+        (variable, its position among the array's values; None for the variable itself)."""
+        c = self.comps.get(comp)
+        if c is None or c.info is None or name in c.info.variables:
+            var = self.variable(comp, name, elem)
+            return None if var is None else (var, None)
+        found = lookup(c.info.variables, name)
+        if found is None:
+            why = no_element(c.info.variables, name)
+            if why:
+                self.at(elem, f"unknown variable: {comp}.{why}")
+            else:
+                self.variable(comp, name, elem)
+        return found
 
     def split_name(self, dotted: str) -> tuple[str, str] | None:
         """'component.variable' -> (component, variable), matching the longest component name."""

@@ -7,9 +7,14 @@ Integer vs Int32), so types are compared through `type_class`.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
-from dataclasses import dataclass
+import re
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 PROJECT_SCHEME = "project:"
 
@@ -59,14 +64,23 @@ def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
 
 
 def connection_problem(
-    start: str, out_type: str, out_version: str, end: str, in_type: str, in_version: str
+    start: str,
+    out_type: str,
+    out_version: str,
+    end: str,
+    in_type: str,
+    in_version: str,
+    out_shape: tuple[int, ...] = (),
+    in_shape: tuple[int, ...] = (),
 ) -> str | None:
     """Why output `start` (of FMI type out_type, in an FMU of FMI version out_version) cannot
     drive input `end`; None if it can. Both ends must have the same type class (FMI 2 Real =
     FMI 3 Float64, FMI 2 Integer = FMI 3 Int32, as SSP compares them) and be connectable. An FMI 2
-    Enumeration is an Integer, an FMI 3 one an Int64: they do not connect to each other."""
+    Enumeration is an Integer, an FMI 3 one an Int64: they do not connect to each other. FMI 3
+    arrays (out_shape, in_shape: their dimensions, () for a scalar) drive arrays of the same shape,
+    element by element."""
     if type_class(out_type) != type_class(in_type):
-        return f"type mismatch: {start} is {out_type}, {end} is {in_type}"
+        return f"type mismatch: {start} is {typed(out_type, out_shape)}, {end} is {typed(in_type, in_shape)}"
     carried = coupling_kind(out_type, out_version)
     if carried is None:
         return f"{start} is {out_type}: connections carry {CONNECTABLE}"
@@ -76,15 +90,92 @@ def connection_problem(
             f"type mismatch: {start} is an FMI {out_version} {out_type} (carried as {carried}), {end} an "
             f"FMI {in_version} {in_type} (carried as {other}); connect enumerations of one FMI version"
         )
+    if tuple(out_shape) != tuple(in_shape):
+        return (
+            f"shape mismatch: {start} is {typed(out_type, out_shape, True)}, "
+            f"{end} is {typed(in_type, in_shape, True)}; an array drives an array of the same shape"
+        )
     return None
 
 
-def stimulus_problem(fmi_type: str, fmi_version: str, kind: str) -> str | None:
-    """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type; None if it
-    can. Numeric and Enumeration inputs take steps; tables (piecewise linear) only continuous ones."""
+def typed(fmi_type: str, shape: tuple[int, ...] = (), scalar: bool = False) -> str:
+    """A variable's type with its dimensions: "Float64[3]", "Float64[2,2]"; a scalar's type alone
+    ("Float64", with `scalar` "a scalar Float64")."""
+    if shape:
+        return f"{fmi_type}[{','.join(str(n) for n in shape)}]"
+    return f"a scalar {fmi_type}" if scalar else fmi_type
+
+
+# -- FMI 3 arrays ---------------------------------------------------------------------------------
+# An array is one variable (one value reference, its elements in a row in row-major order: the
+# last index varies fastest). Its elements are named as FMI's structured names write them,
+# indices from 1: y[1], y[2], y[3]; m[1,1], m[1,2], m[2,1], m[2,2]. Results have a column per
+# element under that name; mm:Record and parameter bindings may name one element.
+_ELEMENT = re.compile(r"^(.+)\[([0-9]+(?:,[0-9]+)*)\]$")
+
+
+def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
+    """The names of an array's elements in row-major order; [name] for a scalar (shape ())."""
+    if not shape:
+        return [name]
+    ranges = (range(1, n + 1) for n in shape)
+    return [f"{name}[{','.join(str(i) for i in index)}]" for index in itertools.product(*ranges)]
+
+
+def split_element(name: str) -> tuple[str, tuple[int, ...]] | None:
+    """ "m[2,1]" -> ("m", (2, 1)); None if `name` does not end in indices written as
+    `element_names` writes them (no spaces, no leading zeros)."""
+    m = _ELEMENT.match(name)
+    if m is None:
+        return None
+    index = tuple(int(i) for i in m.group(2).split(","))
+    return (m.group(1), index) if m.group(2) == ",".join(str(i) for i in index) else None
+
+
+def lookup(variables: Mapping[str, Any], name: str) -> tuple[Any, int | None] | None:
+    """(variable, position) of what `name` names among `variables` (anything with `.shape`): a
+    variable itself (position None), or one element y[i,j] of an array y (position: its index
+    among y's values, row major). A variable of that exact name wins (FMI 2 FMUs name scalars
+    "x[1]"). None if it names neither."""
+    v = variables.get(name)
+    if v is not None:
+        return v, None
+    split = split_element(name)
+    if split is None:
+        return None
+    base, index = split
+    v = variables.get(base)
+    if v is None or len(index) != len(v.shape):
+        return None
+    if not all(1 <= i <= n for i, n in zip(index, v.shape, strict=True)):
+        return None
+    position = 0
+    for i, n in zip(index, v.shape, strict=True):
+        position = position * n + i - 1
+    return v, position
+
+
+def no_element(variables: Mapping[str, Any], name: str) -> str | None:
+    """Why `name`, written as an element y[...] of an array y of `variables`, names none of its
+    elements ("y is Float64[3]: it has no element y[4]"); None if it does not look like one."""
+    split = split_element(name)
+    v = variables.get(split[0]) if split else None
+    if v is None or lookup(variables, name) is not None:
+        return None
+    if not v.shape:
+        return f"{split[0]} is {typed(v.type, ())}, not an array"
+    return f"{split[0]} is {typed(v.type, v.shape)}: it has no element {name}"
+
+
+def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[int, ...] = ()) -> str | None:
+    """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type (and shape:
+    () for a scalar); None if it can. Numeric and Enumeration scalar inputs take steps; tables
+    (piecewise linear) only continuous ones."""
     carried = coupling_kind(fmi_type, fmi_version)
     if carried is None or carried == "Boolean":
         return f"stimuli drive {STIMULATED} inputs"
+    if shape:
+        return "stimuli drive scalar inputs, not arrays"
     if kind != "step" and carried not in CONTINUOUS:
         return f"{_an(fmi_type)} input takes a step stimulus, not a table"
     return None
@@ -102,6 +193,38 @@ def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str
     typed = "Int32" if fmi_type in ("Integer", "Enumeration") and fmi_version.startswith("2") else fmi_type
     low, high = INT_RANGES.get("Int64" if typed == "Enumeration" else typed, (-math.inf, math.inf))
     return None if low <= value <= high else f"outside [{low}, {high}]"
+
+
+def declared_range(fmi_type: str, low: str | None, high: str | None, items=()) -> tuple[float, float] | None:
+    """[min, max] a variable declares (its own or its declared type's min and max; an Enumeration
+    without them: its lowest and highest item), None if it declares neither bound. The FMU
+    refuses values outside it."""
+    if low is None and high is None and fmi_type == "Enumeration" and items:
+        values = [v for _, v in items]
+        return min(values), max(values)
+    if low is None and high is None:
+        return None
+    return _number(low, -math.inf), _number(high, math.inf)
+
+
+def _number(text: str | None, default: float) -> float:
+    if text is None:
+        return default
+    try:
+        return int(text)
+    except ValueError:
+        return float(text)
+
+
+def range_problem(value: float, bounds: tuple[float, float] | None) -> str | None:
+    """Why `value` is outside the `declared_range` bounds ("outside [1, 6]"); None if it is inside."""
+    if bounds is None or bounds[0] <= value <= bounds[1]:
+        return None
+    return f"outside [{_shown(bounds[0])}, {_shown(bounds[1])}]"
+
+
+def _shown(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def _an(word: str) -> str:
@@ -136,6 +259,7 @@ class Var:
     min: str | None
     max: str | None
     items: tuple[tuple[str, int], ...] = ()  # Enumeration items (name, value)
+    shape: tuple[int, ...] = ()  # FMI 3 array: its dimensions (start sizes); () for a scalar
 
     @property
     def kind(self) -> str:
@@ -151,6 +275,8 @@ class FmuInfo:
     feedthrough: dict[str, frozenset[str]]  # output name -> inputs it depends on directly
     co_simulation: bool
     can_interpolate_inputs: bool
+    # structural parameters that give an array its size -> the arrays they size
+    sizes: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 def project_fmu_names() -> list[str]:
@@ -235,8 +361,10 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
     try:
         md = parse(path)
     except Exception as err:  # fmpy raises plain Exceptions for invalid descriptions
-        raise SourceError(f"cannot read the modelDescription.xml of {path.name}: {err}") from err
+        why = unsized_array(path) or err
+        raise SourceError(f"cannot read the modelDescription.xml of {path.name}: {why}") from err
     variables: dict[str, Var] = {}
+    sizes: dict[str, list[str]] = {}
     for v in md.modelVariables:
         declared = v.declaredType
         items = tuple((i.name, int(i.value)) for i in declared.items) if declared is not None else ()
@@ -251,7 +379,11 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
             min=v.min if v.min is not None else (declared.min if declared is not None else None),
             max=v.max if v.max is not None else (declared.max if declared is not None else None),
             items=items,
+            shape=tuple(int(n) for n in getattr(v, "shape", ()) or ()),
         )
+        for d in v.dimensions or ():
+            if d.start is None and d.variable is not None:
+                sizes.setdefault(d.variable.name, []).append(v.name)
     inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
     feedthrough: dict[str, frozenset[str]] = {
         n: inputs for n, v in variables.items() if v.causality == "output"
@@ -268,4 +400,39 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
         feedthrough=feedthrough,
         co_simulation=cs is not None,
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
+        sizes={k: tuple(v) for k, v in sizes.items()},
     )
+
+
+def unsized_array(path: Path) -> str | None:
+    """Why the size of an FMI 3 array of the FMU at `path` cannot be known before the run (a
+    dimension that names no variable, or one without a start value); None if every array has
+    its size (or the description cannot be read at all: fmpy says why)."""
+    from lxml import etree
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            root = etree.fromstring(zf.read("modelDescription.xml"))
+    except Exception:
+        return None
+    variables = root.find("ModelVariables")
+    if variables is None:
+        return None
+    by_vr = {e.get("valueReference"): e for e in variables if isinstance(e.tag, str)}
+    for e in variables:
+        for d in e.findall("Dimension") if isinstance(e.tag, str) else ():
+            if d.get("start") is not None:
+                continue
+            size = by_vr.get(d.get("valueReference"))
+            if size is None:
+                return (
+                    f"the size of array {e.get('name')} is variable {d.get('valueReference')}, "
+                    "which the model description does not declare"
+                )
+            start = size.get("start")
+            if start is None or not start.strip().isdigit():
+                return (
+                    f"the size of array {e.get('name')} is {size.get('name')}, which has no start value: "
+                    "its size cannot be known before the run"
+                )
+    return None

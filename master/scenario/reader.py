@@ -249,7 +249,7 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         ok = True
         problem = fmuinfo.connection_problem(
             f"{se}.{sc}", out.type, ctx.comps[se].info.fmi_version, f"{ee}.{ec}", inp.type,
-            ctx.comps[ee].info.fmi_version,
+            ctx.comps[ee].info.fmi_version, out.shape, inp.shape,
         )  # fmt: skip
         if problem:
             ctx.at(elem, problem)

@@ -17,7 +17,17 @@ from lxml import etree
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import FLOATS, RECORDED, recordable, stimulus_problem, stimulus_value_problem
+from .fmuinfo import (
+    FLOATS,
+    RECORDED,
+    declared_range,
+    element_names,
+    range_problem,
+    recordable,
+    stimulus_problem,
+    stimulus_value_problem,
+    typed,
+)
 from .model import Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -304,16 +314,20 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
         else:
             s.record_interval = interval
     chosen = []
+    columns: set[tuple[str, str]] = set()  # (component, variable or array element) recorded so far
     for ve in rec.findall(tag(NS_MM, "Variable")):
         key = (ve.get("component", ""), ve.get("name", ""))
-        var = ctx.variable(*key, ve)
-        if var is not None:
+        found = ctx.element(*key, ve)  # a variable, an array (every element) or one element
+        if found is not None:
+            var, position = found
+            names = element_names(var.name, var.shape) if position is None else [key[1]]
             if not recordable(var.type, ctx.comps[key[0]].info.fmi_version):
                 ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {RECORDED}")
-            elif key in chosen:
+            elif columns & {(key[0], n) for n in names}:
                 ctx.at(ve, "recorded twice")
             else:
                 chosen.append(key)
+                columns.update((key[0], n) for n in names)
     s.record = tuple(chosen)
 
 
@@ -340,10 +354,11 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        problem = stimulus_problem(var.type, version, kind)
+        problem = stimulus_problem(var.type, version, kind, var.shape)
         if problem:
-            ctx.at(se, f"{key[0]}.{key[1]} is {var.type}: {problem}")
+            ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.type, var.shape)}: {problem}")
             ok = False
+        bounds = declared_range(var.type, var.min, var.max, var.items)
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
             ok = False
@@ -363,8 +378,15 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
                 ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
                 ok = False
             wrong = stimulus_value_problem(var.type, version, v)
+            outside = range_problem(v, bounds)
             if wrong:
                 ctx.at(pe, f"value {v:g} is {wrong} ({key[0]}.{key[1]} is {var.type})")
+                ok = False
+            elif outside:  # the FMU would refuse it in the run
+                whose = "its items" if var.min is None and var.max is None else "its min and max"
+                ctx.at(
+                    pe, f"value {v:g} at time {t:g} s is {outside}, the range of {key[0]}.{key[1]} ({whose})"
+                )
                 ok = False
             times.append(t)
             values.append(v)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .fmuinfo import FLOATS, INT_RANGES, Var
+from .fmuinfo import FLOATS, INT_RANGES, Var, element_names, typed
 from .model import Value
 
 SETTABLE_CAUSALITIES = {"parameter", "structuralParameter", "input"}
@@ -14,12 +14,22 @@ class BadValue(Exception):
     """A value that does not fit the variable (message says why)."""
 
 
-def settable(var: Var) -> str | None:
+def settable(var: Var, element: bool = False) -> str | None:
     """Why `var` cannot take a parameter binding, or None if it can.
 
     SSP 1.0 / FMI: parameters and inputs that are not constant and whose start is not calculated,
     and outputs with initial="exact" or "approx" (start values of states, such as a pressure
-    that is both a state and an output; FMI lets them be set before initialisation)."""
+    that is both a state and an output; FMI lets them be set before initialisation). An FMI 3
+    array takes values element by element (`element`: the binding names one, y[i,j]); SSP 1.0
+    values are scalars, so the array as a whole takes none. Strings and Binaries are scalars only."""
+    if var.shape and not element:
+        first = element_names(var.name, var.shape)[0]
+        return (
+            f"it is an array ({typed(var.type, var.shape)}); array parameters are not supported as a "
+            f"whole: bind its elements, such as {first}, one by one"
+        )
+    if element and var.kind in ("String", "Binary"):
+        return f"arrays of {var.type} take no values"
     start_output = var.causality == "output" and var.initial in ("exact", "approx")
     if var.causality not in SETTABLE_CAUSALITIES and not start_output:
         return (

@@ -113,10 +113,11 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
         before = old.component(comp.name).parameters
         variables = fmuinfo.read(comp.fmu_path).variables
         changed = {k: v for k, v in comp.parameters.items()
-                   if before.get(k) != v and (k in before or not _is_start(variables[k], v))}  # fmt: skip
+                   if before.get(k) != v and (k in before or not _is_start(variables, k, v))}  # fmt: skip
         if changed:
             element = next(e for e in elements if e.get("name") == comp.name)
-            _append_parameters(element, {k: (variables[k], v) for k, v in changed.items()}, title)
+            found = {k: fmuinfo.lookup(variables, k) for k in changed}
+            _append_parameters(element, {k: (found[k][0], v) for k, v in changed.items()}, title)
 
 
 def _settings(system: etree._Element) -> etree._Element:
@@ -151,12 +152,18 @@ def _child(parent: etree._Element, kind: str, **attrs: str) -> etree._Element:
     return elem
 
 
-def _is_start(var: fmuinfo.Var, value: Value) -> bool:
-    """Whether `value` is the FMU's own start value of `var` (setting it changes nothing)."""
-    if var.start is None:
+def _is_start(variables: dict[str, fmuinfo.Var], name: str, value: Value) -> bool:
+    """Whether `value` is the FMU's own start value of variable (or array element) `name`
+    (setting it changes nothing)."""
+    var, position = fmuinfo.lookup(variables, name)
+    start = var.start
+    if start is not None and position is not None:  # an array's start: its elements, row major
+        starts = start.split()
+        start = starts[position] if position < len(starts) else None
+    if start is None:
         return False
     try:
-        return from_string(var, var.start) == value
+        return from_string(var, start) == value
     except BadValue:
         return False
 
