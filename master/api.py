@@ -65,9 +65,13 @@ def apply_overrides(
     record: list[str] | None = None,
     set_values: dict[str, Value] | list[str] | None = None,
     output_interval: float | str | Fraction | None = None,
+    record_coupling_errors: bool = False,
 ) -> Scenario:
-    """A copy of `sc` with command-line style overrides ("component.variable" names)."""
+    """A copy of `sc` with command-line style overrides ("component.variable" names);
+    record_coupling_errors: record the coupling error columns (whatever the scenario says)."""
     names = [c.name for c in sc.components]
+    if record_coupling_errors:
+        sc = dataclasses.replace(sc, record_coupling_errors=True)
     if stop_time is not None:
         sc = dataclasses.replace(sc, stop_time=_parse_time("--stop-time", stop_time))
     if output_interval is not None:
@@ -169,6 +173,7 @@ def run(
     plot: str | Path | None = None,
     step_timeout: float | None = None,
     cpus: list[int] | None = None,
+    record_coupling_errors: bool = False,
 ) -> RunResult:
     """Run a scenario (file or `Scenario`) and return its results.
 
@@ -178,18 +183,25 @@ def run(
     timed serial trial says it pays) or "in-process" (the FMUs in this process: no protection
     against a crashing FMU, for debugging); `step_timeout`: s one component's macro step may take
     before it counts as a hang (default 10); `cpus`: processors to pin the workers to, worker w on
-    cpus[w % len(cpus)] (paced runs also ask for SCHED_FIFO and locked memory). On failure, SIGINT,
-    SIGTERM or SIGHUP a
-    SimulationError is raised after the rows computed so far are written; it carries `.result`
-    (a RunResult) and, when a signal stopped the run, `.signal` (its number).
+    cpus[w % len(cpus)] (paced runs also ask for SCHED_FIFO and locked memory).
+    `record_coupling_errors` (or `<mm:Record couplingErrors="true">`): one more column per
+    extrapolated connection, "coupling_error(source.output -> consumer.input)": the absolute
+    difference (in the signal's unit) between the sample the consumer's polynomial predicted and
+    the sample the source produced, of the latest prediction checked; the row at time t shows the
+    prediction of the source's sample at t - H (0 before the first full-order one).
+    On failure, SIGINT, SIGTERM or SIGHUP a SimulationError is raised after the rows computed so
+    far are written; it carries `.result` (a RunResult) and, when a signal stopped the run,
+    `.signal` (its number).
     """
     if isinstance(scenario, Scenario):
-        sc = apply_overrides(scenario, stop_time, record, set_values, output_interval)
+        sc = apply_overrides(scenario, stop_time, record, set_values, output_interval, record_coupling_errors)
     else:  # the reader converts and checks --set values against the FMUs
         texts = dict(_split_set(s) for s in set_values) if isinstance(set_values, list) else None
         if isinstance(set_values, dict):
             texts = {k: str(v) for k, v in set_values.items()}
-        sc = apply_overrides(load_scenario(scenario, texts), stop_time, record, None, output_interval)
+        sc = apply_overrides(
+            load_scenario(scenario, texts), stop_time, record, None, output_interval, record_coupling_errors
+        )
     p = plan(sc)
     for note in p.notes:
         log.info(note)
@@ -202,7 +214,7 @@ def run(
                 raise UsageError(
                     f"--cpus {cpus}: not processors this process may use ({sorted(os.sched_getaffinity(0))})"
                 )
-        columns = ["time"] + [f"{c}.{v}" for c, v in p.record]
+        columns = p.columns
         try:  # before anything runs: a results file that cannot be written stops it at once
             recorder = Recorder(columns, Path(output) if output is not None else None)
         except ResultsError as e:
@@ -237,7 +249,7 @@ def run(
         from master.recorder import plot_result
 
         try:
-            plot_result(result.data, plot, title=sc.name, units=_units(sc, p.record))
+            plot_result(result.data, plot, title=sc.name, units=_units(sc, p))
         except (OSError, ValueError) as e:  # PIL raises either for a path it cannot write
             raise UsageError(f"--plot {plot}: cannot write the plot there ({e})") from None
     return result
@@ -255,7 +267,7 @@ def _write_metadata(output: str | Path | None, summary, sc: Scenario, p: Plan) -
         return
     meta = {
         "scenario": str(sc.path),
-        "units": _units(sc, p.record),
+        "units": _units(sc, p),
         "summary": dataclasses.asdict(summary)
         | {
             "real_time_factor": summary.real_time_factor,
@@ -268,13 +280,19 @@ def _write_metadata(output: str | Path | None, summary, sc: Scenario, p: Plan) -
         log.warning("%s: metadata not written (%s)", metadata_path(output), e.strerror or e)
 
 
-def _units(sc: Scenario, record: tuple[tuple[str, str], ...]) -> dict[str, str | None]:
-    """Unit of each recorded column "component.variable" from the FMUs' model descriptions."""
+def _units(sc: Scenario, p: Plan) -> dict[str, str | None]:
+    """Unit of each recorded column "component.variable" from the FMUs' model descriptions (an
+    array element: the array's unit); a coupling error column has the unit of the signal (its
+    source output)."""
     from master.scenario.fmuinfo import lookup
 
     described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
-    found = {(c, v): lookup(described[c], v) for c, v in record}  # an array element: the array's unit
-    return {f"{c}.{v}": found[c, v][0].unit if found[c, v] else None for c, v in record}
+    found = {(c, v): lookup(described[c], v) for c, v in p.record}
+    units = {f"{c}.{v}": found[c, v][0].unit if found[c, v] else None for c, v in p.record}
+    for name, (source, output, *_) in zip(p.columns[1 + len(p.record) :], p.record_errors, strict=True):
+        hit = lookup(described[source], output)
+        units[name] = hit[0].unit if hit else None
+    return units
 
 
 def validate(path: str | Path) -> list:

@@ -76,6 +76,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--plot", metavar="PNG", help="plot the recorded variables into this file")
     r.add_argument(
+        "--record-coupling-errors",
+        action="store_true",
+        help="also record, per extrapolated connection, its latest coupling error estimate as a column "
+        '"coupling_error(source.output -> consumer.input)" (the prediction of the sample one macro step '
+        "before the row, in the signal's unit)",
+    )
+    r.add_argument(
         "--real-time",
         nargs="?",
         const=1.0,
@@ -276,6 +283,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
                 progress=progress,
                 plot=args.plot,
                 cpus=args.cpus,
+                record_coupling_errors=args.record_coupling_errors,
             )
         except SimulationError as e:
             res = getattr(e, "result", None)

@@ -1,6 +1,7 @@
 """Recorded results and run telemetry.
 
-Rows (time in s, then one column per "component.variable") are buffered in a preallocated
+Rows (time in s, then one column per "component.variable" and, when asked, one per extrapolated
+connection, "coupling_error(source.output -> consumer.input)") are buffered in a preallocated
 chunk and streamed to disk when it fills: a raw float64 file (read back as a numpy structured
 array) and, when asked, a CSV file that `read_csv` reads, and `fmpy.util.read_csv` too unless a
 name holds a comma (an element of an FMI 3 matrix, "c.m[1,2]", quoted: fmpy's reader splits the
@@ -19,6 +20,13 @@ from pathlib import Path
 import numpy as np
 
 CHUNK_ROWS = 4096
+COUPLING_ERROR = "coupling_error("  # how a coupling error column's name begins (master.schedule)
+
+
+def signal_columns(data: np.ndarray) -> list[str]:
+    """The recorded signals of a result array: every column but "time" and the coupling error
+    columns (which measure the coupling, not the system: comparisons and stability checks skip them)."""
+    return [n for n in data.dtype.names if n != "time" and not n.startswith(COUPLING_ERROR)]
 
 
 class ResultsError(OSError):
@@ -222,7 +230,8 @@ def plot_result(
     """Plot recorded columns of a structured array over "time" (s) into a PNG file.
 
     With `units` (column -> unit, None for none) each unit gets its own panel, so that
-    pressures in Pa do not flatten positions in m; without, one panel holds every column.
+    pressures in Pa do not flatten positions in m; without, one panel holds every column. Coupling
+    error columns ("coupling_error(...)", far smaller than the signals) get panels of their own.
     """
     import matplotlib
 
@@ -230,17 +239,20 @@ def plot_result(
     import matplotlib.pyplot as plt
 
     names = columns or [n for n in data.dtype.names if n != "time"]
-    groups: dict[str | None, list[str]] = {}
+    groups: dict[tuple[str, str | None], list[str]] = {}
     for n in names:
-        groups.setdefault(units.get(n) if units is not None else "", []).append(n)
+        what = "coupling error " if n.startswith(COUPLING_ERROR) else ""
+        groups.setdefault((what, units.get(n) if units is not None else ""), []).append(n)
     fig, axes = plt.subplots(
         len(groups) or 1, 1, sharex=True, squeeze=False, figsize=(8, max(4.5, 2.2 * len(groups)))
     )
-    for ax, (unit, members) in zip(axes[:, 0], groups.items(), strict=False):
+    for ax, ((what, unit), members) in zip(axes[:, 0], groups.items(), strict=False):
         for n in members:
             ax.plot(data["time"], data[n], label=n)
         if units is not None:
-            ax.set_ylabel(f"[{unit}]" if unit else "(no unit)")
+            ax.set_ylabel(what + (f"[{unit}]" if unit else "(no unit)"))
+        elif what:
+            ax.set_ylabel(what.strip())
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")

@@ -119,6 +119,12 @@ class Link:
         j_end = min(available, -((-(j + 1) * ks) // kc))
         return j_end, min(self.order, j_end)
 
+    @property
+    def estimated(self) -> bool:
+        """Whether the coupling error estimate covers this link: an extrapolated one (not a source
+        that goes first, not a held discrete signal)."""
+        return not self.source_first and self.kind in CONTINUOUS
+
     def startup(self) -> list[tuple[int, int]]:
         """(macro step, lowest order used in it) for the macro steps that use a lower order."""
         out = []
@@ -159,6 +165,19 @@ class Plan:
     # components whose FMU may be instantiated only once per process, by FMU file: each set
     # needs as many processes as it has members
     exclusive: tuple[tuple[str, ...], ...] = ()
+    # Scenario.record_coupling_errors: a column per extrapolated connection (source, output,
+    # consumer, input) after the `record` columns, its latest coupling error (kernel.h: mk_link)
+    record_errors: tuple[tuple[str, str, str, str], ...] = ()
+
+    @property
+    def columns(self) -> list[str]:
+        """The names of the recorded columns: "time", "component.variable" of each `record`, then
+        "coupling_error(source.output -> consumer.input)" of each `record_errors`."""
+        return (
+            ["time"]
+            + [f"{c}.{v}" for c, v in self.record]
+            + [coupling_error_column(*e) for e in self.record_errors]
+        )
 
     def component(self, name: str) -> PlanComponent:
         for c in self.components:
@@ -196,6 +215,17 @@ class Plan:
             lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
         lines.extend(f"  note: {n}" for n in self.notes)
         return "\n".join(lines)
+
+
+def connection_name(source: str, output: str, consumer: str, input_: str) -> str:
+    """The name of a connection in the run summary: "source.output -> consumer.input"."""
+    return f"{source}.{output} -> {consumer}.{input_}"
+
+
+def coupling_error_column(source: str, output: str, consumer: str, input_: str) -> str:
+    """The recorded column of a connection's coupling error: "coupling_error(source.output ->
+    consumer.input)" (no comma: the CSV header and fmpy.util.read_csv keep it whole)."""
+    return f"coupling_error({connection_name(source, output, consumer, input_)})"
 
 
 def _err(sc: Scenario, what: str) -> PlanError:
@@ -442,4 +472,12 @@ def build_plan(
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
         exclusive=exclusive,
+        record_errors=tuple(
+            (lk.source, o, lk.consumer, i)
+            for lk in links
+            if lk.estimated
+            for o, i in zip(lk.outputs, lk.inputs, strict=True)
+        )
+        if sc.record_coupling_errors
+        else (),
     )

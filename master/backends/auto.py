@@ -27,7 +27,7 @@ def trial(plan: Plan, groups: list[list[str]], step_timeout: float) -> tuple[flo
     simulation meanwhile) of a worker backend with `groups`, timed on the macro steps after
     start-up."""
     be = WorkerBackend(plan, groups, step_timeout)
-    rec = Recorder(["time"] + [f"{c}.{v}" for c, v in plan.record])
+    rec = Recorder(plan.columns)
     try:
         t0 = time.perf_counter()
         be.open()

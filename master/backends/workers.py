@@ -222,7 +222,7 @@ class WorkerBackend:
             )
             for pc in self.plan.components
         }
-        row_bytes = 8 * (1 + len(self.plan.record))
+        row_bytes = 8 * len(self.plan.columns)
         self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from master.recorder import signal_columns
+
 
 @dataclass(frozen=True)
 class Trajectory:
@@ -36,8 +38,9 @@ class Trajectory:
 
 
 def as_trajectory(data: np.ndarray) -> Trajectory:
-    """A run's structured result array (time + "component.variable" columns) as a Trajectory."""
-    names = [n for n in data.dtype.names if n != "time"]
+    """A run's structured result array (time + "component.variable" columns) as a Trajectory
+    (recorded coupling errors left out)."""
+    names = signal_columns(data)
     return Trajectory(
         np.asarray(data["time"], dtype=float), {n: np.asarray(data[n], dtype=float) for n in names}
     )

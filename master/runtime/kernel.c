@@ -52,6 +52,12 @@ void mk_layout(int64_t *sizes) {
     sizes[9] = (int64_t)sizeof(mk_call);
 }
 
+void mk_constants(int64_t *values) {
+    values[0] = MK_KINDS;
+    values[1] = MK_COUPLING_ERROR;
+    values[2] = MK_ERROR_FIELDS;
+}
+
 static int64_t now_ns(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -516,12 +522,13 @@ static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t
     const int64_t base = n * lk->k_source;
     const double *now = hist + (base % cap) * n_out;
     for (int32_t i = 0; i < lk->n_cols; i++) {
-        double y = now[lk->columns[i]], *e = lk->error + 5 * i;
+        double y = now[lk->columns[i]], *e = lk->error + MK_ERROR_FIELDS * i;
         if (n > lk->n_plain) { /* a full-order prediction was made in macro step n - 1 */
             double d = fabs(lk->predicted[i] - y);
             if (!(d <= e[0])) e[0] = d;
             e[1] += d * d;
             e[2] += 1.0;
+            e[5] = d;
         }
         if (y < e[3]) e[3] = y;
         if (y > e[4]) e[4] = y;
@@ -834,6 +841,16 @@ static int32_t ring_room(mk_kernel *k) {
     return wait_for(k, k->shared->rows_drained, k->rows_total - k->row_capacity + 1) ? aborted(k) : MK_DONE;
 }
 
+/* The latest coupling error of link column `index` of component c (mk_record). */
+static double coupling_error(const mk_component *c, uint32_t index) {
+    for (int32_t l = 0; l < c->n_links; l++) {
+        const mk_link *lk = &c->links[l];
+        if (index < (uint32_t)lk->n_cols) return lk->error ? lk->error[MK_ERROR_FIELDS * index + 5] : 0.0;
+        index -= (uint32_t)lk->n_cols;
+    }
+    return 0.0;
+}
+
 int32_t mk_record_row(mk_kernel *k, int64_t n) {
     int32_t code = ring_room(k);
     if (code) return code;
@@ -845,6 +862,10 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         mk_component *c = &k->components[rec->component];
         if (rec->kind == MK_REAL_SAMPLE) {
             row[rec->column] = c->hist[(((n + 1) * c->ratio) % c->cap) * c->n_out + rec->index];
+            continue;
+        }
+        if (rec->kind == MK_COUPLING_ERROR) {
+            row[rec->column] = coupling_error(c, rec->index);
             continue;
         }
         int64_t t0 = now_ns();

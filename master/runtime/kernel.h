@@ -26,6 +26,9 @@ enum {
     MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
 };
 
+/* A recorded column that is no FMU value: a link's latest coupling error (mk_record). */
+enum { MK_COUPLING_ERROR = MK_KINDS };
+
 /* What mk_run returned. */
 enum {
     MK_DONE = 0,       /* reached n_to */
@@ -67,6 +70,8 @@ typedef struct {
     const uint32_t *vrs;
 } mk_call;
 
+#define MK_ERROR_FIELDS 6 /* mk_link.error per column: max, sum of squares, count, min, max, latest */
+
 /* One link into a consumer: `n_cols` outputs of `source` drive inputs slot0.. of the consumer.
  *
  * Tables hold, per macro step kind, the sample offsets and weights of every consumer step m:
@@ -94,10 +99,11 @@ typedef struct {
     /* The coupling error estimate of an extrapolated link: in macro step n its polynomial through
      * samples n k_source - i (weights `predict`, i < terms) predicts sample (n + 1) k_source;
      * in macro step n + 1 that sample is known. error[c]: max |prediction - sample|, sum of
-     * squares, count, and the smallest and largest sample seen (the signal's range). */
+     * squares, count, the smallest and largest sample seen (the signal's range), and the latest
+     * |prediction - sample| (0 until the first; a recorded column, MK_COUPLING_ERROR). */
     const double *predict; /* [terms], NULL: no estimate (a source that goes first) */
     double *predicted;     /* [n_cols] */
-    double *error;         /* [n_cols][5] */
+    double *error;         /* [n_cols][MK_ERROR_FIELDS] */
 } mk_link;
 
 /* A step or table signal on an input slot of its component (see master/coupling.py). */
@@ -189,12 +195,17 @@ typedef struct {
     double fmu_time;
 } mk_component;
 
-/* One recorded column: a sample from a history, or a value read from the FMU at the row through the
- * call of its kind. */
+/* One recorded column: a sample from a history, a value read from the FMU at the row through the
+ * call of its kind, or the latest coupling error of one of the component's links' columns (the row
+ * after macro step n holds the error found at the start of macro step n: of the prediction of the
+ * source's sample at the macro step's start, made in macro step n - 1, one macro step before the
+ * row's time). */
 typedef struct {
     int32_t column; /* in the row (0 is time) */
     int32_t component;
-    int32_t kind;   /* MK_REAL_SAMPLE: history column `index`; any other kind: value reference */
+    int32_t kind;   /* MK_REAL_SAMPLE: history column `index`; MK_COUPLING_ERROR: link column `index`
+                       (the component's links' columns counted in link order); any other kind:
+                       value reference */
     uint32_t index;
 } mk_record;
 
@@ -274,6 +285,8 @@ typedef struct {
 
 /* Sizes of the structures, for the ctypes mirror to check itself against. */
 void mk_layout(int64_t *sizes);
+/* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS. */
+void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */
 int32_t mk_initial_sweep(mk_kernel *k, int32_t c);

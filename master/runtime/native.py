@@ -2,7 +2,8 @@
 
 `pip install` builds kernel.c into `_kernel*.so` beside this file (setup.py). In a development
 checkout a kernel.c or kernel.h newer than the built library is rebuilt here with the system C
-compiler, so an edit never runs stale code. `library()` checks that the structure sizes agree with C.
+compiler, so an edit never runs stale code. `library()` checks that the structure sizes and the
+shared constants agree with C.
 """
 
 from __future__ import annotations
@@ -47,6 +48,9 @@ KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # sc
 # FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
 TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 KINDS = 11
+COUPLING_ERROR = KINDS  # a recorded column: a link column's latest coupling error (kernel.h mk_record)
+ERROR_FIELDS = 6  # mk_link.error per column: max, sum of squares, count, min, max, latest
+CONSTANTS = {"MK_KINDS": KINDS, "MK_COUPLING_ERROR": COUPLING_ERROR, "MK_ERROR_FIELDS": ERROR_FIELDS}
 LATE_BINS = 10000
 
 _p = C.c_void_p
@@ -310,6 +314,11 @@ def library() -> C.CDLL:
             raise KernelBuildError(
                 f"{path.name}: {struct.__name__} is {size} bytes in C, {C.sizeof(struct)} here"
             )
+    values = (_i64 * len(CONSTANTS))()
+    lib.mk_constants(values)
+    for (name, value), c_value in zip(CONSTANTS.items(), values, strict=True):
+        if value != c_value:
+            raise KernelBuildError(f"{path.name}: {name} is {c_value} in C, {value} here")
     kp = C.POINTER(Kernel)
     lib.mk_initial_sweep.argtypes = [kp, _i32]
     lib.mk_record_row.argtypes = [kp, _i64]

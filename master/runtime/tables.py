@@ -26,7 +26,7 @@ from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, lookup
-from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, value_kind
+from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, connection_name, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
@@ -123,7 +123,7 @@ def layout(
         shape = (history_capacity(plan, pc.name), len(outs[pc.name]))
         out[f"hist:{pc.name}"] = (shape, "float64")
         out[f"previous:{pc.name}"] = (shape, "float64")
-    out["rows"] = ((row_capacity, 1 + len(plan.record)), "float64")
+    out["rows"] = ((row_capacity, len(plan.columns)), "float64")
     counter, pacing = C.sizeof(native.Counter), C.sizeof(native.Pacing)
     nc, nw = len(plan.components), max(n_workers, 1)
     out["published"] = ((nc, counter), "uint8")
@@ -140,7 +140,8 @@ def layout(
     out["pacing"] = ((nw, pacing), "uint8")
     out["pace"] = ((2,), "float64")  # real-time factor (0: unpaced), clock origin (ns)
     out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
-    out["estimates"] = ((max(sum(len(lk.inputs) for lk in plan.links), 1), 5), "float64")  # see mk_link
+    n_estimates = max(sum(len(lk.inputs) for lk in plan.links), 1)
+    out["estimates"] = ((n_estimates, native.ERROR_FIELDS), "float64")  # see mk_link
     out["steps"] = ((nc,), "int64")
     out["fmu_time"] = ((nc,), "float64")
     return out
@@ -194,12 +195,16 @@ class CompiledPlan:
         k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
         local = [(i, c, v) for i, (c, v) in enumerate(plan.record) if c in fmus]
         self.record_index = [i for i, _, _ in local]  # plan.record index of each local column
-        records = (native.Record * max(len(local), 1))()
+        # a connection's coupling error: recorded by the process that steps its consumer
+        errors = [(i, e) for i, e in enumerate(plan.record_errors) if e[2] in fmus]
+        records = (native.Record * max(len(local) + len(errors), 1))()
         for r, (i, comp, var) in enumerate(local):
             records[r] = self._record(1 + i, comp, var)
-        k.n_records = len(local)
+        for r, (i, error) in enumerate(errors, len(local)):
+            records[r] = self._error_record(1 + len(plan.record) + i, *error)
+        k.n_records = len(local) + len(errors)
         k.records = records
-        k.n_columns = 1 + len(plan.record)
+        k.n_columns = len(plan.columns)
         self.rows = memory["rows"]
         k.rows = _ptr(self.rows, C.c_double)
         k.row_capacity = len(self.rows)
@@ -402,7 +407,7 @@ class CompiledPlan:
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
         the source's next macro-step sample, and its rows of the shared statistics, reset."""
-        if lk.source_first or lk.kind not in CONTINUOUS:  # discrete signals are held, not predicted
+        if not lk.estimated:  # a source that goes first; discrete signals are held, not predicted
             return {}
         rows = self.memory["estimates"][estimate_rows(self.plan, lk)]
         rows[:] = 0.0
@@ -412,6 +417,20 @@ class CompiledPlan:
             "predicted": _ptr(self._array(np.zeros(len(lk.inputs)), np.float64), C.c_double),
             "error": _ptr(rows, C.c_double),
         }
+
+    def _error_record(
+        self, column: int, source: str, output: str, consumer: str, input_: str
+    ) -> native.Record:
+        """The column of a connection's latest coupling error (kernel.h: MK_COUPLING_ERROR): its
+        place among the columns of the consumer's links, in the kernel's link order."""
+        index = 0
+        for lk in self.plan.links_into(consumer):
+            if lk.source == source and (output, input_) in zip(lk.outputs, lk.inputs, strict=True):
+                assert lk.estimated, lk
+                return native.Record(column, self.names.index(consumer), native.COUPLING_ERROR,
+                                     index + lk.inputs.index(input_))  # fmt: skip
+            index += len(lk.inputs)
+        raise KeyError(f"{source}.{output} -> {consumer}.{input_}: no such connection")
 
     def _record(self, column: int, comp: str, var: str) -> native.Record:
         i = self.names.index(comp)
@@ -723,12 +742,12 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
     est = memory["estimates"]
     out = {}
     for lk in plan.links:
-        if lk.source_first:
+        if not lk.estimated:
             continue
         for o, i, row in zip(lk.outputs, lk.inputs, est[estimate_rows(plan, lk)], strict=True):
             if row[2] > 0:
                 span = row[4] - row[3] if row[4] > row[3] else 1.0
-                out[f"{lk.source}.{o} -> {lk.consumer}.{i}"] = {
+                out[connection_name(lk.source, o, lk.consumer, i)] = {
                     "max": float(row[0] / span),
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }

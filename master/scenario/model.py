@@ -67,6 +67,8 @@ class Scenario:
     stimuli: tuple[Stimulus, ...] = ()
     record: tuple[tuple[str, str], ...] = ()  # (component, variable); empty: all outputs
     record_interval: Fraction | None = None  # None: every macro step
+    # a column per extrapolated connection: its latest coupling error (master.schedule.Plan.columns)
+    record_coupling_errors: bool = False
 
     def component(self, name: str) -> Component:
         for c in self.components:

@@ -134,6 +134,7 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         stimuli=setup.stimuli,
         record=setup.record,
         record_interval=setup.record_interval,
+        record_coupling_errors=setup.record_coupling_errors,
     )
 
 

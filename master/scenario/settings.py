@@ -49,6 +49,7 @@ class Settings:
     internal_step: dict[str, Fraction] = field(default_factory=dict)  # interpolating FMUs' substeps (s)
     record: tuple[tuple[str, str], ...] = ()
     record_interval: Fraction | None = None
+    record_coupling_errors: bool = False
     stimuli: tuple[Stimulus, ...] = ()
 
 
@@ -303,6 +304,7 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     rec = elem.find(tag(NS_MM, "Record"))
     if rec is None:
         return
+    s.record_coupling_errors = bool(_bool(rec.get("couplingErrors")))
     interval = _time(ctx, rec, "interval")
     if interval is not None:
         k = interval / s.macro_step

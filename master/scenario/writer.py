@@ -3,11 +3,11 @@
 The copy keeps everything of the original (comments, parameter sets, connectors, stimuli) and
 changes only what differs between two loaded scenarios: the macro step, the coupling and its
 order, each component's step ratio, extrapolation order and input interpolation, the record
-interval, and parameter values (appended as a last inline parameter set of the component, which
-takes precedence over the earlier bindings). Per-connection extrapolation orders are removed
-when the new scenario has none. An .ssp is written as a new archive with its other members
-copied; an .ssd written to another folder has its relative references rewritten to still point
-at the same files.
+interval and whether coupling errors are recorded, and parameter values (appended as a last
+inline parameter set of the component, which takes precedence over the earlier bindings).
+Per-connection extrapolation orders are removed when the new scenario has none. An .ssp is
+written as a new archive with its other members copied; an .ssd written to another folder has
+its relative references rewritten to still point at the same files.
 """
 
 from __future__ import annotations
@@ -108,6 +108,8 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
             elem.set("extrapolationOrder", str(order))
     if new.record_interval != old.record_interval and new.record_interval is not None:
         _child(settings, "Record").set("interval", decimal(new.record_interval))
+    if new.record_coupling_errors != old.record_coupling_errors:
+        _child(settings, "Record").set("couplingErrors", "true" if new.record_coupling_errors else "false")
     elements = system.find(tag(NS_SSD, "Elements"))
     for comp in new.components:
         before = old.component(comp.name).parameters

@@ -77,7 +77,7 @@ def sweep(
 
     sc = _scene(api, scenario, stop_time, set_values, record, output_interval)
     plan = api.plan(sc)
-    columns = [f"{c}.{v}" for c, v in plan.record]
+    columns = plan.columns[1:]
     ranges = bind([parse_vary(v, method) for v in vary], sc)
     cases = points(ranges, method, samples, seed)
     checked = tuple(parse_metric(m, ["time", *columns]) for m in metrics or [])
