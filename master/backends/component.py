@@ -6,6 +6,7 @@ Times are in seconds.
 from __future__ import annotations
 
 from master.fmu import Fmu
+from master.scenario.fmuinfo import TEXT
 from master.scenario.model import Component, Scenario
 from master.schedule import KINDS, Plan
 
@@ -46,7 +47,8 @@ def history_capacity(plan: Plan, name: str) -> int:
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
     """Variables of `name` read at each communication point: the coupled Real outputs, the
     recorded Real ones, then the coupled outputs of the other kinds, kind by kind (schedule.KINDS:
-    Integer, Boolean, then the FMI 3 ones read through their own calls; kernel.h's order)."""
+    Integer, Boolean, then the FMI 3 ones read through their own calls; kernel.h's order). String
+    outputs have a ring of their own (`string_output_names`)."""
     out: list[str] = []
     for kind in KINDS:
         for lk in plan.links:
@@ -54,6 +56,16 @@ def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
                 out.extend(o for o in lk.outputs if o not in out)
         if kind == "Real":
             out.extend(v for c, v in plan.record if c == name and v not in out and _float64(variables[v]))
+    return out
+
+
+def string_output_names(plan: Plan, name: str) -> list[str]:
+    """The coupled String outputs of `name`, read into its string ring (kernel.h) at each
+    communication point whose samples are used, in link order."""
+    out: list[str] = []
+    for lk in plan.links:
+        if lk.source == name and lk.kind == TEXT:
+            out.extend(o for o in lk.outputs if o not in out)
     return out
 
 

@@ -25,7 +25,7 @@ CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT = range(9)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT, TOO_LONG = range(10)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -41,12 +41,15 @@ CALLS = (
     "set_boolean",
     "get_typed",
     "set_typed",
+    "get_string",
+    "set_string",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 # FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
 TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 KINDS = 11
 LATE_BINS = 10000
+STRING_SLOT = 1024  # bytes of one String sample in a string ring, the terminating zero included
 
 _p = C.c_void_p
 _i32, _i64, _u32, _f64 = C.c_int32, C.c_int64, C.c_uint32, C.c_double
@@ -168,6 +171,17 @@ class Component(C.Structure):
         ("n_consumers", _i32),
         ("consumers", C.POINTER(_i32)),
         ("local", _i32),
+        ("get_string", _p),
+        ("set_string", _p),
+        ("n_out_string", _i32),
+        ("out_string_vrs", C.POINTER(_u32)),
+        ("strings", C.POINTER(C.c_char)),
+        ("strings_previous", C.POINTER(C.c_char)),
+        ("n_in_string", _i32),
+        ("in_string_vrs", C.POINTER(_u32)),
+        ("n_string_links", _i32),
+        ("string_links", C.POINTER(Link)),
+        ("string_u", C.POINTER(C.c_char)),
         ("saved_state", _p),
         ("steps", _i64),
         ("fmu_time", _f64),
@@ -284,13 +298,16 @@ def library() -> C.CDLL:
     elif path is None:
         raise KernelBuildError(f"{HERE}: the kernel library is missing; reinstall the package")
     lib = C.CDLL(str(path))
-    sizes = (_i64 * len(STRUCTS))()
+    sizes = (_i64 * (len(STRUCTS) + 1))()
     lib.mk_layout(sizes)
-    for struct, size in zip(STRUCTS, sizes, strict=True):
+    for struct, size in zip(STRUCTS, sizes[: len(STRUCTS)], strict=True):
         if C.sizeof(struct) != size:
             raise KernelBuildError(
                 f"{path.name}: {struct.__name__} is {size} bytes in C, {C.sizeof(struct)} here"
             )
+    if sizes[len(STRUCTS)] != STRING_SLOT:
+        slot = sizes[len(STRUCTS)]
+        raise KernelBuildError(f"{path.name}: a String slot is {slot} bytes in C, {STRING_SLOT} here")
     kp = C.POINTER(Kernel)
     lib.mk_initial_sweep.argtypes = [kp, _i32]
     lib.mk_record_row.argtypes = [kp, _i64]
