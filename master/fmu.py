@@ -41,6 +41,8 @@ RAW_NAMES = {
         "get_state": "fmi2GetFMUstate",
         "set_state": "fmi2SetFMUstate",
         "free_state": "fmi2FreeFMUstate",
+        "get_string": "fmi2GetString",
+        "set_string": "fmi2SetString",
     },
     "3": {
         "get_real": "fmi3GetFloat64",
@@ -53,6 +55,8 @@ RAW_NAMES = {
         "get_state": "fmi3GetFMUState",
         "set_state": "fmi3SetFMUState",
         "free_state": "fmi3FreeFMUState",
+        "get_string": "fmi3GetString",
+        "set_string": "fmi3SetString",
     },
 }
 

@@ -76,7 +76,8 @@ class Clock:
         return Fraction(self.num0 + j * self.dnum, self.den)
 
 
-# what connections carry (fmuinfo.coupling_kind), in the kernel's order of inputs and outputs
+# what numeric connections carry (fmuinfo.coupling_kind), in the kernel's order of inputs and
+# outputs; String connections (kind fmuinfo.TEXT) have rings and inputs of their own (kernel.h)
 KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64",
          "UInt64")  # fmt: skip
 
@@ -86,7 +87,7 @@ def _article(word: str | None) -> str:
 
 
 def value_kind(v: VariableInfo, fmi_version: str) -> str | None:
-    """The kind (`KINDS`) of a variable's value as connections carry it, None for String, Binary."""
+    """The kind (`KINDS`, or "String") of a variable's value as connections carry it, None for Binary."""
     return coupling_kind(v.fmi_type or v.type, fmi_version)
 
 
@@ -102,7 +103,7 @@ class Link:
     source_first: bool  # the source completes the macro step before the consumer starts it
     k_source: int  # effective step ratios
     k_consumer: int
-    kind: str = "Real"  # what it carries (`KINDS`): Real, Float32, or a held kind (order 0)
+    kind: str = "Real"  # what it carries (`KINDS` or "String"): Real, Float32, or a held kind (order 0)
 
     def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
@@ -329,7 +330,7 @@ def build_plan(
         if not 0 <= order_ <= MAX_ORDER:
             raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
         if kinds[0] not in CONTINUOUS:
-            order_ = 0  # discrete signals (integers, Booleans) are held between communication points
+            order_ = 0  # discrete signals (integers, Booleans, Strings) are held between communication points
         # an array drives an array of the same shape element by element: a pair per element
         outs, ins = element_names(cn.start_connector, shapes[0]), element_names(cn.end_connector, shapes[1])
         pairs = zip(outs, ins, strict=True)

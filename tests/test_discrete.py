@@ -94,11 +94,11 @@ def test_what_a_connection_carries_per_fmi_type():
         "Integer",
         "Boolean",
         "Integer",
-        None,
+        "String",
     ]
     fmi3 = ("Float64", "Int32", "Boolean", "Enumeration", "Float32", "Int64", "UInt8", "String", "Binary")
     assert [coupling_kind(t, "3.0") for t in fmi3] == [
-        "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", None, None
+        "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", "String", None
     ]  # fmt: skip
 
 

@@ -57,6 +57,9 @@ def test_structures_agree_with_the_c_header():
     sizes = (native._i64 * len(native.STRUCTS))()
     lib.mk_layout(sizes)
     assert [native.C.sizeof(s) for s in native.STRUCTS] == list(sizes)
+    values = (native._i64 * len(native.CONSTANTS))()  # the constants both sides use, the String slot too
+    lib.mk_constants(values)
+    assert list(native.CONSTANTS.values()) == list(values)
 
 
 def test_stimuli_are_numpys_interpolation_and_steps(echo):

@@ -286,7 +286,7 @@ def test_a_scenario_file_connects_and_stimulates_every_numeric_type():
 
 def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_ends(folder: Path):
     conns = [("a", "y_float32", "b", "u_float64"), ("a", "y_int8", "b", "u_int16"),
-             ("a", "y_string", "b", "u_string"), ("g", "y", "b", "u_float32"),
+             ("a", "y_binary", "b", "u_binary"), ("g", "y", "b", "u_float32"),
              ("a", "y_enumeration", "b", "u_int64")]  # fmt: skip
     stimuli = (
         '<mm:Stimuli><mm:Table component="b" variable="u_int8"><mm:Point time="0" value="1"/></mm:Table>'
@@ -299,9 +299,9 @@ def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_end
         ("ssd:Connection a.y_float32 -> b.u_float64",
          "type mismatch: a.y_float32 is Float32, b.u_float64 is Float64"),
         ("ssd:Connection a.y_int8 -> b.u_int16", "type mismatch: a.y_int8 is Int8, b.u_int16 is Int16"),
-        ("ssd:Connection a.y_string -> b.u_string",
-         "a.y_string is String: connections carry numeric, Boolean and Enumeration signals; String and "
-         "Binary ones cannot be connected"),
+        ("ssd:Connection a.y_binary -> b.u_binary",
+         "a.y_binary is Binary: connections carry numeric, Boolean, Enumeration and String signals; Binary "
+         "ones cannot be connected"),
         ("ssd:Connection g.y -> b.u_float32", "type mismatch: g.y is Real, b.u_float32 is Float32"),
         ("ssd:Connection a.y_enumeration -> b.u_int64",
          "type mismatch: a.y_enumeration is Enumeration, b.u_int64 is Int64"),

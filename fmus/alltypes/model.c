@@ -9,7 +9,7 @@
  *   y_<int>   = u_<int> + p_<int>           saturated at the type's range, for int8, uint8,
  *                                           int16, uint16, int32, uint32, int64, uint64
  *   y_boolean = !u_boolean
- *   y_string  = u_string + "!"              cut to 255 bytes
+ *   y_string  = u_string + "!"              cut to 2047 bytes
  *   y_binary  = the bytes of u_binary in reverse order
  *   y_enumeration = u_enumeration mod 6 + 1 (Enumeration "Solver", values 1..6: the next one)
  *   y_vec     = 2 u_vec                     (Float64 vectors of 3)
@@ -123,7 +123,7 @@ static const Variable VARIABLES[N_VARIABLES] = {
     INPUT("u_boolean", T_BOOLEAN, V_DISCRETE, B_U, 0.0, NULL, "Boolean input"),
     OUTPUT("y_boolean", T_BOOLEAN, V_DISCRETE, B_Y, "not u", "32"),
     INPUT("u_string", T_STRING, V_DISCRETE, S_U, 0.0, "abc", "String input"),
-    OUTPUT("y_string", T_STRING, V_DISCRETE, S_Y, "u followed by \"!\", cut to 255 bytes", "34"),
+    OUTPUT("y_string", T_STRING, V_DISCRETE, S_Y, "u followed by \"!\", cut to 2047 bytes", "34"),
     INPUT("u_binary", T_BINARY, V_DISCRETE, X_U, 0.0, "00ff", "Binary input"),
     OUTPUT("y_binary", T_BINARY, V_DISCRETE, X_Y, "the bytes of u in reverse order", "36"),
     {"u_enumeration", T_SOLVER, C_INPUT, V_DISCRETE, I_DEFAULT, I_U_ENUMERATION, 1, NULL, 1, SOLVER_COUNT, NULL,

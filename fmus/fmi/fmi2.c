@@ -135,7 +135,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
     GUARD("fmi2GetString", S_GET);
-    if (!check_access(inst, "fmi2GetString", vr, nvr, T_MASK_STRING, nvr, 0, NULL, NULL)) return fmi2Error;
+    if (!prepare_get(inst, "fmi2GetString", vr, nvr, T_MASK_STRING, nvr)) return fmi2Error; /* outputs refreshed */
     for (size_t i = 0; i < nvr; i++) value[i] = model_string(inst, inst->model->variables[vr[i]].slot);
     return fmi2OK;
 }

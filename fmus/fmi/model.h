@@ -44,7 +44,7 @@ typedef enum {
 #define T_FLOAT64 T_REAL
 #define T_INT32 T_INTEGER
 
-#define STRING_CAPACITY 256 /* bytes per String slot, terminating zero included */
+#define STRING_CAPACITY 2048 /* bytes per String slot, terminating zero included */
 #define BINARY_CAPACITY 256 /* bytes per Binary slot */
 #define MAX_DIMENSIONS 3    /* dimensions of an FMI 3.0 array variable */
 typedef enum { C_PARAMETER, C_CALCULATED_PARAMETER, C_INPUT, C_OUTPUT, C_LOCAL, C_INDEPENDENT } Causality;

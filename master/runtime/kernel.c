@@ -34,6 +34,10 @@ typedef int fmi_get_state(void *, void **);
 typedef int fmi_set_state(void *, void *);
 typedef int fmi_free_state(void *, void **);
 typedef int fmi2_get_boolean_status(void *, int, int32_t *);
+typedef int fmi2_get_string(void *, const uint32_t *, size_t, const char **);
+typedef int fmi2_set_string(void *, const uint32_t *, size_t, const char *const *);
+typedef int fmi3_get_string(void *, const uint32_t *, size_t, const char **, size_t);
+typedef int fmi3_set_string(void *, const uint32_t *, size_t, const char *const *, size_t);
 #define FMI2_DISCARD 2
 #define FMI2_TERMINATED 3 /* fmi2StatusKind fmi2Terminated */
 
@@ -56,6 +60,7 @@ void mk_constants(int64_t *values) {
     values[0] = MK_KINDS;
     values[1] = MK_COUPLING_ERROR;
     values[2] = MK_ERROR_FIELDS;
+    values[3] = MK_STRING_SLOT;
 }
 
 static int64_t now_ns(void) {
@@ -409,6 +414,48 @@ static int get_outputs(const mk_component *c, double *row, int32_t *call, int32_
     return st;
 }
 
+/* -- String connections (kernel.h) ------------------------------------------------------------- */
+
+/* Slot i of sample `sample` in a component's string ring. */
+static char *string_slot(const mk_component *c, char *ring, int64_t sample, int32_t i) {
+    return ring + ((size_t)(sample % c->cap) * (size_t)c->n_out_string + (size_t)i) * MK_STRING_SLOT;
+}
+
+/* A String of at most MK_STRING_SLOT - 1 bytes, terminating zero included. */
+static void copy_string(char *to, const char *from) { memcpy(to, from, strlen(from) + 1); }
+
+/* The String inputs from values[i * MK_STRING_SLOT] (i < n) through fmi2SetString / fmi3SetString. */
+static int set_strings(const mk_component *c, const uint32_t *vrs, const char *values, int32_t n) {
+    const char *v[n];
+    for (int32_t i = 0; i < n; i++) v[i] = values + (size_t)i * MK_STRING_SLOT;
+    if (c->fmi == 3) return ((fmi3_set_string *)c->set_string)(c->instance, vrs, (size_t)n, v, (size_t)n);
+    return ((fmi2_set_string *)c->set_string)(c->instance, vrs, (size_t)n, v);
+}
+
+/* Read component ci's String outputs into sample `sample` of `ring`: MK_DONE, MK_FMI_ERROR (the
+ * call failed in the step from point j) or MK_TOO_LONG (a String that does not fit its slot). */
+static int32_t read_strings(mk_kernel *k, int32_t ci, char *ring, int64_t j, int64_t sample) {
+    const mk_component *c = &k->components[ci];
+    const int32_t n = c->n_out_string;
+    const char *v[n];
+    for (int32_t i = 0; i < n; i++) v[i] = NULL;
+    int st = c->fmi == 3 ? ((fmi3_get_string *)c->get_string)(c->instance, c->out_string_vrs, (size_t)n, v, (size_t)n)
+                         : ((fmi2_get_string *)c->get_string)(c->instance, c->out_string_vrs, (size_t)n, v);
+    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_STRING, st, j);
+    for (int32_t i = 0; i < n; i++) {
+        const char *text = v[i] ? v[i] : "";
+        size_t length = strlen(text);
+        if (length >= MK_STRING_SLOT) {
+            fail(k, MK_TOO_LONG, ci, -1, 0, sample);
+            k->error.variable = i;
+            k->error.integer = (uint64_t)length;
+            return MK_TOO_LONG;
+        }
+        memcpy(string_slot(c, ring, sample, i), text, length + 1);
+    }
+    return MK_DONE;
+}
+
 /* The input derivatives of the Real inputs, derivative block by block (one call when every input
  * is Real: the blocks are then contiguous). */
 static int set_derivatives(const mk_component *c, const double *u) {
@@ -571,6 +618,22 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
             }
         }
     }
+    /* String links: the held sample of each step, copied (the source may overwrite its slot once
+     * this component has taken its inputs, before the step sets them) */
+    for (int32_t l = 0; l < c->n_string_links; l++) {
+        const mk_link *lk = &c->string_links[l];
+        const mk_component *src = &k->components[lk->source];
+        char *ring = relaxed ? src->strings_previous : src->strings;
+        int32_t t = relaxed ? lk->n_plain + 1 + (n < lk->n_relaxed ? (int32_t)n : lk->n_relaxed)
+                            : (n < lk->n_plain ? (int32_t)n : lk->n_plain);
+        const int64_t *off = lk->offsets + (size_t)t * kc; /* one term */
+        const int64_t base = n * lk->k_source;
+        for (int32_t m = 0; m < kc; m++) {
+            char *to = c->string_u + ((size_t)m * c->n_in_string + lk->slot0) * MK_STRING_SLOT;
+            for (int32_t i = 0; i < lk->n_cols; i++)
+                copy_string(to + (size_t)i * MK_STRING_SLOT, string_slot(src, ring, base + off[m], lk->columns[i]));
+        }
+    }
     if (c->n_stimuli) {
         const int64_t j0 = n * kc;
         for (int32_t m = 0; m < kc; m++)
@@ -632,6 +695,11 @@ static int32_t wait_inputs(mk_kernel *k, const mk_component *c, int64_t n) {
         mk_counter *ready = lk->ahead ? &k->shared->stepped[lk->source] : &k->shared->published[lk->source];
         if (wait_for(k, ready, n + lk->ahead)) return aborted(k);
     }
+    for (int32_t l = 0; l < c->n_string_links; l++) {
+        const mk_link *lk = &c->string_links[l];
+        mk_counter *ready = lk->ahead ? &k->shared->stepped[lk->source] : &k->shared->published[lk->source];
+        if (wait_for(k, ready, n + lk->ahead)) return aborted(k);
+    }
     return MK_DONE;
 }
 
@@ -668,6 +736,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int64_t t0 = now_ns();
         int32_t call = 0;
         if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        if (c->n_in_string &&
+            (st = set_strings(c, c->in_string_vrs, c->string_u + (size_t)m * c->n_in_string * MK_STRING_SLOT,
+                              c->n_in_string)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_STRING, st, j);
         if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
         if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
@@ -680,6 +752,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
+        if (c->n_out_string && c->reads[m] && (st = read_strings(k, ci, c->strings, j, j + 1)) != MK_DONE) return st;
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
@@ -704,6 +777,8 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         mk_counter *ready = c->link_final[l] ? &sh->published[lk->source] : &sh->stepped[lk->source];
         if (wait_for(k, ready, n + 1)) return aborted(k);
     }
+    for (int32_t l = 0; sh && l < c->n_string_links; l++) /* String outputs are never read again */
+        if (wait_for(k, &sh->stepped[c->string_links[l].source], n + 1)) return aborted(k);
     const int64_t j = (n + 1) * c->ratio;
     int64_t t0 = now_ns();
     int st = STATUS_OK;
@@ -720,6 +795,16 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
                              : lk->slot0 < c->n_in_real + c->n_in_integer ? MK_INTEGER
                                                                          : MK_BOOLEAN;
         st = set_kind(c, kind, lk->vrs, lk->n_vrs, c->scratch, lk->n_cols, &call);
+    }
+    for (int32_t l = 0; st <= STATUS_OK && l < c->n_string_links; l++) { /* held like Integers: set again */
+        const mk_link *lk = &c->string_links[l];
+        const mk_component *src = &k->components[lk->source];
+        char *to = c->string_u; /* step 0's values as scratch: the next macro step fills them anew */
+        for (int32_t i = 0; i < lk->n_cols; i++)
+            copy_string(to + (size_t)i * MK_STRING_SLOT,
+                        string_slot(src, src->strings, (n + 1) * lk->k_source, lk->columns[i]));
+        call = MK_CALL_SET_STRING;
+        st = set_strings(c, c->in_string_vrs + lk->slot0, to, lk->n_cols);
     }
     double *row = c->hist + (j % c->cap) * c->n_out;
     const int32_t n64 = c->n_resample - c->n_resample_float32, nvr64 = c->n_resample_vrs - c->n_resample_float32_vrs;
@@ -783,7 +868,10 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         if ((code = barrier(k))) break;
         for (int32_t i = 0; i < k->n_components; i++) {
             mk_component *c = &k->components[i];
-            if (c->local) memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
+            if (!c->local) continue;
+            memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
+            if (c->n_out_string)
+                memcpy(c->strings_previous, c->strings, (size_t)c->cap * (size_t)c->n_out_string * MK_STRING_SLOT);
         }
         if ((code = barrier(k))) break;
         for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
@@ -830,7 +918,17 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     int64_t t0 = now_ns();
     int32_t call = 0;
     if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    for (int32_t l = 0; l < c->n_string_links; l++) {
+        const mk_link *lk = &c->string_links[l];
+        const mk_component *src = &k->components[lk->source];
+        char *to = c->string_u + (size_t)lk->slot0 * MK_STRING_SLOT; /* step 0's values as scratch */
+        for (int32_t i = 0; i < lk->n_cols; i++)
+            copy_string(to + (size_t)i * MK_STRING_SLOT, string_slot(src, src->strings, 0, lk->columns[i]));
+    }
+    if (c->n_in_string && (st = set_strings(c, c->in_string_vrs, c->string_u, c->n_in_string)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_STRING, st, 0);
     if (c->n_out && (st = read_outputs(k, ci, c->hist, 0, 0)) != MK_DONE) return st;
+    if (c->n_out_string && (st = read_strings(k, ci, c->strings, 0, 0)) != MK_DONE) return st;
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     return MK_DONE;
 }

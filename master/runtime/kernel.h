@@ -20,7 +20,8 @@
  * (FMI 2 Integer and Enumeration, FMI 3 Int32), Boolean, and the other FMI 3 numeric types, set and
  * read through the calls of their own type (mk_component: set_typed, get_typed; an FMI 3
  * Enumeration is an Int64). Values travel as doubles: exact for Float32 and for integers up to 2^53
- * in magnitude. Real and Float32 signals are extrapolated, the others held (order 0). */
+ * in magnitude. Real and Float32 signals are extrapolated, the others held (order 0). Strings
+ * (coupled, never recorded) travel as text in string rings of their own, held too (MK_STRING_SLOT). */
 enum {
     MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2, MK_FLOAT32, MK_INT8, MK_UINT8, MK_INT16, MK_UINT16,
     MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
@@ -41,13 +42,20 @@ enum {
     MK_STOPPED = 7,    /* an FMU ended the simulation (FMI 2 fmi2Terminated, FMI 3 terminateSimulation) */
     MK_INEXACT = 8,    /* a 64-bit integer output in a history (a coupled one) is beyond 2^53 in
                           magnitude: a double cannot carry it exactly */
+    MK_TOO_LONG = 9,   /* a coupled String output is longer than its slot (MK_STRING_SLOT - 1 bytes) */
 };
+
+/* String connections: a coupled String output is read after each step whose samples are used into
+ * the component's string ring, a slot of MK_STRING_SLOT bytes (the terminating zero included) per
+ * sample and output, same ring index as its numeric samples; consumers hold it (order 0). */
+#define MK_STRING_SLOT 1024
 
 /* Which FMI call failed (mk_error.call). */
 enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
-    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED, MK_CALL_SET_TYPED,
+    MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED, MK_CALL_SET_TYPED, MK_CALL_GET_STRING,
+    MK_CALL_SET_STRING,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -172,10 +180,11 @@ typedef struct {
     const uint8_t *reads;
     const double *bound; /* |output| beyond this has diverged */
     /* Resampling: no output lags its time label. After each macro step (a start-up one after its
-     * last sweep) the linked inputs are set again to the sources' final samples at the macro
-     * step's end, and the n_resample Real and Float32 outputs that depend on inputs (the last
-     * n_resample_float32 of them Float32) are read again into that sample, before it is published
-     * (tables.resampling says which components); held (discrete) outputs are not read again. */
+     * last sweep) the linked inputs (held and String ones too) are set again to the sources' final
+     * samples at the macro step's end, and the n_resample Real and Float32 outputs that depend on
+     * inputs (the last n_resample_float32 of them Float32) are read again into that sample, before
+     * it is published (tables.resampling says which components); held (discrete) and String
+     * outputs are not read again. */
     int32_t resample;
     int32_t resample_always; /* 0: the re-read outputs are recorded, never coupled: only at the
                                 macro steps that record a row */
@@ -189,6 +198,23 @@ typedef struct {
     int32_t n_consumers; /* components reading this history (they hold its ring back) */
     const int32_t *consumers;
     int32_t local;       /* stepped by this process */
+    /* String connections (none: every count 0, nothing is called). Outputs: n_out_string coupled
+     * String outputs, read with get_string (fmi2GetString / fmi3GetString) wherever reads[m], into
+     * strings[sample % cap][i][MK_STRING_SLOT] (hist_previous's twin: strings_previous). Inputs:
+     * n_in_string, set with set_string before each step from string_u[m][i][MK_STRING_SLOT], which
+     * fill_inputs copies from the sources' rings: string_links are mk_links of one term (held)
+     * whose columns index the source's String outputs and slot0 the String inputs (the numeric
+     * fields weights, zero, scale, predict: unused). */
+    mk_function get_string, set_string;
+    int32_t n_out_string;
+    const uint32_t *out_string_vrs;
+    char *strings;          /* [cap][n_out_string][MK_STRING_SLOT] */
+    char *strings_previous; /* start-up: the previous sweep's */
+    int32_t n_in_string;
+    const uint32_t *in_string_vrs;
+    int32_t n_string_links;
+    const mk_link *string_links;
+    char *string_u; /* [ratio][n_in_string][MK_STRING_SLOT] */
     /* written by the kernel */
     void *saved_state;
     int64_t steps;
@@ -215,10 +241,12 @@ typedef struct {
     int32_t call;
     int32_t status;
     int64_t point;    /* communication point j at the start of the failing step */
-    int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED, MK_INEXACT) or record index */
+    int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED, MK_INEXACT; MK_TOO_LONG: of the
+                         String outputs) or record index */
     int32_t kind;     /* the value kind of a failing MK_CALL_SET_TYPED / MK_CALL_GET_TYPED */
     double value;
-    uint64_t integer; /* MK_INEXACT: the integer read (an Int64 as its two's complement bits) */
+    uint64_t integer; /* MK_INEXACT: the integer read (an Int64 as its two's complement bits);
+                         MK_TOO_LONG: the String's length in bytes */
 } mk_error;
 
 /* Per-frame lateness of real-time pacing: a histogram in microseconds and the extremes. */
@@ -285,7 +313,8 @@ typedef struct {
 
 /* Sizes of the structures, for the ctypes mirror to check itself against. */
 void mk_layout(int64_t *sizes);
-/* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS. */
+/* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS,
+ * MK_STRING_SLOT. */
 void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */

@@ -26,7 +26,7 @@ CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT = range(9)
+DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT, TOO_LONG = range(10)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -42,6 +42,8 @@ CALLS = (
     "set_boolean",
     "get_typed",
     "set_typed",
+    "get_string",
+    "set_string",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -50,8 +52,14 @@ TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32":
 KINDS = 11
 COUPLING_ERROR = KINDS  # a recorded column: a link column's latest coupling error (kernel.h mk_record)
 ERROR_FIELDS = 6  # mk_link.error per column: max, sum of squares, count, min, max, latest
-CONSTANTS = {"MK_KINDS": KINDS, "MK_COUPLING_ERROR": COUPLING_ERROR, "MK_ERROR_FIELDS": ERROR_FIELDS}
 LATE_BINS = 10000
+STRING_SLOT = 1024  # bytes of one String sample in a string ring, the terminating zero included
+CONSTANTS = {
+    "MK_KINDS": KINDS,
+    "MK_COUPLING_ERROR": COUPLING_ERROR,
+    "MK_ERROR_FIELDS": ERROR_FIELDS,
+    "MK_STRING_SLOT": STRING_SLOT,
+}
 
 _p = C.c_void_p
 _i32, _i64, _u32, _f64 = C.c_int32, C.c_int64, C.c_uint32, C.c_double
@@ -191,6 +199,17 @@ class Component(C.Structure):
         ("n_consumers", _i32),
         ("consumers", C.POINTER(_i32)),
         ("local", _i32),
+        ("get_string", _p),
+        ("set_string", _p),
+        ("n_out_string", _i32),
+        ("out_string_vrs", C.POINTER(_u32)),
+        ("strings", C.POINTER(C.c_char)),
+        ("strings_previous", C.POINTER(C.c_char)),
+        ("n_in_string", _i32),
+        ("in_string_vrs", C.POINTER(_u32)),
+        ("n_string_links", _i32),
+        ("string_links", C.POINTER(Link)),
+        ("string_u", C.POINTER(C.c_char)),
         ("saved_state", _p),
         ("steps", _i64),
         ("fmu_time", _f64),

@@ -21,11 +21,12 @@ from master.backends.component import (
     SimulationError,
     history_capacity,
     samples_read,
+    string_output_names,
 )
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.scenario.fmuinfo import CONTINUOUS, lookup
+from master.scenario.fmuinfo import CONTINUOUS, TEXT, lookup
 from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, connection_name, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
@@ -47,6 +48,8 @@ FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used wit
     "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
     "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
     "get_boolean_status": ("fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
+    "get_string": ("fmi2GetString", "fmi3GetString"),  # String connections only
+    "set_string": ("fmi2SetString", "fmi3SetString"),
 }
 
 
@@ -116,13 +119,19 @@ def layout(
     plan: Plan, outs: dict[str, list[str]], n_workers: int, row_capacity: int = ROW_CAPACITY
 ) -> Layout:
     """The arrays a run's processes share (or one process keeps): per component its output history
-    and the previous start-up sweep's copy, the results ring, and with n_workers > 0 the
-    synchronisation counters, the busy markers and the pacing statistics of each worker."""
+    and the previous start-up sweep's copy (and, where it has coupled String outputs, its string
+    ring and that ring's copy), the results ring, and with n_workers > 0 the synchronisation
+    counters, the busy markers and the pacing statistics of each worker."""
     out: Layout = {}
     for pc in plan.components:
-        shape = (history_capacity(plan, pc.name), len(outs[pc.name]))
+        cap = history_capacity(plan, pc.name)
+        shape = (cap, len(outs[pc.name]))
         out[f"hist:{pc.name}"] = (shape, "float64")
         out[f"previous:{pc.name}"] = (shape, "float64")
+        texts = string_output_names(plan, pc.name)
+        if texts:
+            out[f"strings:{pc.name}"] = ((cap, len(texts), native.STRING_SLOT), "uint8")
+            out[f"strings_previous:{pc.name}"] = ((cap, len(texts), native.STRING_SLOT), "uint8")
     out["rows"] = ((row_capacity, len(plan.columns)), "float64")
     counter, pacing = C.sizeof(native.Counter), C.sizeof(native.Pacing)
     nc, nw = len(plan.components), max(n_workers, 1)
@@ -250,6 +259,11 @@ class CompiledPlan:
         hist, previous = self.memory[f"hist:{pc.name}"], self.memory[f"previous:{pc.name}"]
         c.n_out, c.cap = len(out), len(hist)
         c.hist, c.hist_previous = _ptr(hist, C.c_double), _ptr(previous, C.c_double)
+        texts = string_output_names(plan, pc.name)
+        if texts:  # its string ring (kernel.h), read by its consumers in any process
+            c.n_out_string = len(texts)
+            c.strings = _ptr(self.memory[f"strings:{pc.name}"], C.c_char)
+            c.strings_previous = _ptr(self.memory[f"strings_previous:{pc.name}"], C.c_char)
         consumers = sorted({self.names.index(lk.consumer) for lk in plan.links if lk.source == pc.name})
         c.n_consumers = len(consumers)
         c.consumers = _ptr(self._array(consumers, np.int32), C.c_int32)
@@ -289,6 +303,8 @@ class CompiledPlan:
         for kind in KINDS:
             in_names += [i for lk in links if lk.kind == kind for i in lk.inputs]
             in_names += [s.variable for s in stimuli if kind_of(s.variable) == kind]
+        text_links = [lk for lk in links if lk.kind == TEXT]  # String connections: kernel.h
+        links = [lk for lk in links if lk.kind != TEXT]
         in_kinds = [kind_of(n) for n in in_names]
         in_vrs = [variable(fmu, n).vr for n in in_names]  # an array's in each of its elements' slots
         c.n_in_calls, c.in_calls = self._calls(fmu, in_names, in_kinds)
@@ -308,7 +324,10 @@ class CompiledPlan:
             for calls, verb, used in ((c.set_typed, "Set", typed_in), (c.get_typed, "Get", typed_out)):
                 if kind in used and calls[kind] is None:
                     raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi3{verb}{name}")
-        c.feedthrough = int(bool(in_names) and any(variable(fmu, o).name in fmu.feedthrough for o in out))
+        self._string_tables(c, pc, fmu, text_links)
+        texts = string_output_names(plan, pc.name)  # a String output that depends on numeric inputs
+        fed = any(variable(fmu, o).name in fmu.feedthrough for o in out + texts)
+        c.feedthrough = int(bool(in_names) and fed)
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
@@ -403,6 +422,42 @@ class CompiledPlan:
             )
         self._keep.append(calls)
         return len(groups), calls
+
+    def _string_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu, links: list[Link]) -> None:
+        """A component's String connections (kernel.h): its coupled String outputs (their ring is
+        set in `_component`), its String inputs and the held links into them, of one term."""
+        texts = string_output_names(self.plan, pc.name)
+        inputs = [i for lk in links for i in lk.inputs]
+        if not texts and not inputs:
+            return
+        for slot, verb, used in (("get_string", "Get", texts), ("set_string", "Set", inputs)):
+            if used and getattr(c, slot) is None:  # set with the other FMI functions
+                raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi{c.fmi}{verb}String")
+        c.out_string_vrs = _ptr(self._array([fmu.variables[o].vr for o in texts], np.uint32), C.c_uint32)
+        c.n_in_string = len(inputs)
+        c.in_string_vrs = _ptr(self._array([fmu.variables[i].vr for i in inputs], np.uint32), C.c_uint32)
+        buffer = np.zeros((pc.ratio, max(len(inputs), 1), native.STRING_SLOT), np.uint8)
+        c.string_u = _ptr(self._array(buffer, np.uint8), C.c_char)
+        c_links = (native.Link * max(len(links), 1))()
+        for i, lk in enumerate(links):
+            n_plain, n_relaxed, offsets, w, zero = link_tables(lk, [(0, 0)])  # held: one term of weight 1
+            source_texts = string_output_names(self.plan, lk.source)
+            c_links[i] = native.Link(
+                source=self.names.index(lk.source),
+                k_source=lk.k_source,
+                ahead=int(lk.source_first),
+                n_cols=len(lk.inputs),
+                slot0=inputs.index(lk.inputs[0]),
+                columns=_ptr(self._array([source_texts.index(o) for o in lk.outputs], np.int32), C.c_int32),
+                terms=lk.order + 1,
+                n_plain=n_plain,
+                n_relaxed=n_relaxed,
+                offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
+                weights=_ptr(self._array(w, np.float64), C.c_double),
+                zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
+            )
+        c.n_string_links, c.string_links = len(links), c_links
+        self._keep.append(c_links)
 
     def _estimate(self, lk: Link) -> dict:
         """The error estimate's tables of an extrapolated link (kernel.h): the weights predicting
@@ -542,6 +597,15 @@ class CompiledPlan:
             else:
                 what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
+        if e.code == native.TOO_LONG:
+            bad = string_output_names(self.plan, name)[e.variable]
+            return SimulationError(
+                f"{name}.{bad} is {int(e.integer)} bytes long at t={t}: a String connection carries at most "
+                f"{native.STRING_SLOT - 1} bytes",
+                name,
+                t,
+                bad,
+            )
         if e.code == native.INEXACT:
             bad = self.outs[name][e.variable]
             typed = variable(fmu, bad).fmi_type

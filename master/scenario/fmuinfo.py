@@ -27,7 +27,9 @@ FLOATS = {"Float64", "Float32"}
 # What a connection of each FMI type carries: the runtime's value kinds (kernel.h). FMI 2 Real and
 # FMI 3 Float64 are both "Real", FMI 2 Integer and FMI 3 Int32 both "Integer" (so they connect
 # across versions, as SSP compares them); every other FMI 3 numeric type is a kind of its own, set
-# and read through the calls of its own type (an FMI 3 Enumeration through those of Int64).
+# and read through the calls of its own type (an FMI 3 Enumeration through those of Int64). A
+# String (FMI 2 or 3) travels as text in a string ring beside the numeric history (kernel.h:
+# MK_STRING_SLOT bytes a sample, the terminating zero included).
 COUPLED = {
     "Real": "Real",
     "Float64": "Real",
@@ -35,9 +37,11 @@ COUPLED = {
     "Int32": "Integer",
     "Boolean": "Boolean",
     **{t: t for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")},
+    "String": "String",
 }
 CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the other kinds are held
-CONNECTABLE = "numeric, Boolean and Enumeration signals; String and Binary ones cannot be connected"
+TEXT = "String"  # the kind carried as text, not as a number: neither stimulated nor recorded
+CONNECTABLE = "numeric, Boolean, Enumeration and String signals; Binary ones cannot be connected"
 STIMULATED = "numeric and Enumeration"
 INT_RANGES = {
     "Int8": (-(2**7), 2**7 - 1),
@@ -54,10 +58,11 @@ FLOAT32_MAX = 3.4028234663852886e38
 
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     """What a connection of a variable of this type carries (`COUPLED`): "Real", "Integer",
-    "Boolean", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in FMI 2 an
-    Enumeration is an "Integer"); None if it cannot be connected (String, Binary). Kinds in
+    "Boolean", "String", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in
+    FMI 2 an Enumeration is an "Integer"); None if it cannot be connected (Binary). Kinds in
     `CONTINUOUS` are extrapolated by the consumer's order, the others held between communication
-    points (order 0)."""
+    points (order 0). A String connection carries at most 1023 bytes (kernel.h: MK_STRING_SLOT):
+    a longer String output stops the run."""
     if fmi_type == "Enumeration":
         return "Integer" if fmi_version.startswith("2") else "Int64"
     return COUPLED.get(fmi_type)
@@ -75,10 +80,10 @@ def connection_problem(
 ) -> str | None:
     """Why output `start` (of FMI type out_type, in an FMU of FMI version out_version) cannot
     drive input `end`; None if it can. Both ends must have the same type class (FMI 2 Real =
-    FMI 3 Float64, FMI 2 Integer = FMI 3 Int32, as SSP compares them) and be connectable. An FMI 2
-    Enumeration is an Integer, an FMI 3 one an Int64: they do not connect to each other. FMI 3
-    arrays (out_shape, in_shape: their dimensions, () for a scalar) drive arrays of the same shape,
-    element by element."""
+    FMI 3 Float64, FMI 2 Integer = FMI 3 Int32, a String = a String, as SSP compares them) and be
+    connectable. An FMI 2 Enumeration is an Integer, an FMI 3 one an Int64: they do not connect to
+    each other. FMI 3 arrays (out_shape, in_shape: their dimensions, () for a scalar) drive arrays
+    of the same shape, element by element."""
     if type_class(out_type) != type_class(in_type):
         return f"type mismatch: {start} is {typed(out_type, out_shape)}, {end} is {typed(in_type, in_shape)}"
     carried = coupling_kind(out_type, out_version)
@@ -172,7 +177,7 @@ def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[in
     () for a scalar); None if it can. Numeric and Enumeration scalar inputs take steps; tables
     (piecewise linear) only continuous ones."""
     carried = coupling_kind(fmi_type, fmi_version)
-    if carried is None or carried == "Boolean":
+    if carried is None or carried in ("Boolean", TEXT):
         return f"stimuli drive {STIMULATED} inputs"
     if shape:
         return "stimuli drive scalar inputs, not arrays"
@@ -236,8 +241,9 @@ RECORDED = "Real, Integer, Boolean and Enumeration values (FMI 3: every numeric 
 
 def recordable(fmi_type: str, fmi_version: str) -> bool:
     """Whether the runtime can record a variable of this type: what connections carry (in FMI 3
-    every numeric type and Enumeration, each read through its own call)."""
-    return coupling_kind(fmi_type, fmi_version) is not None
+    every numeric type and Enumeration, each read through its own call) but Strings (the results
+    are numbers)."""
+    return coupling_kind(fmi_type, fmi_version) not in (None, TEXT)
 
 
 def type_class(fmi_type: str) -> str:
