@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenefile import ssd
 
 import master.api as api
 from master.backends.component import output_names
@@ -222,46 +223,6 @@ def test_a_string_longer_than_a_slot_stops_the_run(backend):
     sc = Scenario(Path("long.ssd"), "long", comps, link, Fraction(0), Fraction(1), H)
     with pytest.raises(api.SimulationError, match=r"^a\.y_string is 1100 bytes long at t=0\.0: "):
         api.run(sc, backend=backend)
-
-
-def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str, str, str]],
-        settings: str = "", stop: str = "1") -> Path:  # fmt: skip
-    """A scenario file: components (name -> source), connections (start, output, end, input) with
-    their connectors declared, and the children of mm:Settings."""
-    connectors: dict[str, dict[str, str]] = {name: {} for name in components}
-    for s, o, e, i in connections:
-        connectors[s][o] = "output"
-        connectors[e][i] = "input"
-    elements = "".join(
-        f'<ssd:Component name="{name}" source="{source}"><ssd:Connectors>'
-        + "".join(f'<ssd:Connector name="{v}" kind="{k}"/>' for v, k in connectors[name].items())
-        + "</ssd:Connectors></ssd:Component>\n"
-        for name, source in components.items()
-    )
-    links = "".join(
-        f'<ssd:Connection startElement="{s}" startConnector="{o}" endElement="{e}" endConnector="{i}"/>\n'
-        for s, o, e, i in connections
-    )
-    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="{path.stem}"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:mm="urn:org.multirate-master:settings:1">
-  <ssd:System name="{path.stem}">
-    <ssd:Elements>
-{elements}    </ssd:Elements>
-    <ssd:Connections>
-{links}    </ssd:Connections>
-    <ssd:Annotations>
-      <ssc:Annotation type="org.multirate-master.settings">
-        <mm:Settings macroStep="0.1">{settings}</mm:Settings>
-      </ssc:Annotation>
-    </ssd:Annotations>
-  </ssd:System>
-  <ssd:DefaultExperiment stopTime="{stop}"/>
-</ssd:SystemStructureDescription>
-""")
-    return path
 
 
 @pytest.fixture

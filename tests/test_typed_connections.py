@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenefile import ssd
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -221,46 +222,6 @@ def test_float32_outputs_are_read_again_and_inputs_of_every_kind_set_again_after
     assert len(np.unique(d["b.y_float32"])) > N // 2
 
 
-def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str, str, str]],
-        settings: str = "", macro_step: str = "0.1", stop: str = "2") -> Path:  # fmt: skip
-    """A scenario file: components (name -> source), connections (start, output, end, input) with
-    their connectors declared, and the children of mm:Settings."""
-    connectors: dict[str, list[tuple[str, str]]] = {name: [] for name in components}
-    for s, o, e, i in connections:
-        connectors[s].append((o, "output"))
-        connectors[e].append((i, "input"))
-    elements = "".join(
-        f'<ssd:Component name="{name}" source="{source}"><ssd:Connectors>'
-        + "".join(f'<ssd:Connector name="{v}" kind="{k}"/>' for v, k in dict(connectors[name]).items())
-        + "</ssd:Connectors></ssd:Component>\n"
-        for name, source in components.items()
-    )
-    links = "".join(
-        f'<ssd:Connection startElement="{s}" startConnector="{o}" endElement="{e}" endConnector="{i}"/>\n'
-        for s, o, e, i in connections
-    )
-    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="{path.stem}"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:mm="urn:org.multirate-master:settings:1">
-  <ssd:System name="{path.stem}">
-    <ssd:Elements>
-{elements}    </ssd:Elements>
-    <ssd:Connections>
-{links}    </ssd:Connections>
-    <ssd:Annotations>
-      <ssc:Annotation type="org.multirate-master.settings">
-        <mm:Settings macroStep="{macro_step}">{settings}</mm:Settings>
-      </ssc:Annotation>
-    </ssd:Annotations>
-  </ssd:System>
-  <ssd:DefaultExperiment stopTime="{stop}"/>
-</ssd:SystemStructureDescription>
-""")
-    return path
-
-
 @pytest.fixture
 def folder(tmp_path: Path) -> Path:
     """A folder holding alltypes.fmu (FMI 3.0) for scenario files to name."""
@@ -293,7 +254,9 @@ def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_end
         '<mm:Step component="b" variable="u_uint8"><mm:Point time="0" value="300"/></mm:Step>'
         '<mm:Step component="b" variable="u_boolean"><mm:Point time="0" value="1"/></mm:Step></mm:Stimuli>'
     )
-    path = ssd(folder / "bad.ssd", {"a": "alltypes.fmu", "b": "alltypes.fmu", "g": "gain"}, conns, stimuli)
+    path = ssd(
+        folder / "bad.ssd", {"a": "alltypes.fmu", "b": "alltypes.fmu", "g": "gain"}, conns, stimuli, stop="2"
+    )
     problems = [(p.element, p.message) for p in validate(path)]
     assert problems == [
         ("ssd:Connection a.y_float32 -> b.u_float64",
@@ -328,7 +291,9 @@ def test_fmi2_real_integer_and_boolean_drive_fmi3_float64_int32_and_boolean(fold
         '<mm:Table component="g" variable="u"><mm:Point time="0" value="0"/><mm:Point time="2" value="1"/>'
         "</mm:Table></mm:Stimuli>"
     )
-    path = ssd(folder / "mixed.ssd", {"g": "gain", "a": "alltypes.fmu", "d": "discrete"}, conns, settings)
+    path = ssd(
+        folder / "mixed.ssd", {"g": "gain", "a": "alltypes.fmu", "d": "discrete"}, conns, settings, stop="2"
+    )
     assert validate(path) == []
     for backend in ("serial", "in-process"):
         d = api.run(path, backend=backend).data

@@ -1,0 +1,45 @@
+"""Scenario files for tests: a few components, their connections and settings, written as SSD."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str, str, str]],
+        settings: str = "", macro_step: str = "0.1", stop: str = "1") -> Path:  # fmt: skip
+    """A scenario file: components (name -> source), connections (start, output, end, input) with
+    their connectors declared, and the children of mm:Settings."""
+    connectors: dict[str, list[tuple[str, str]]] = {name: [] for name in components}
+    for s, o, e, i in connections:
+        connectors[s].append((o, "output"))
+        connectors[e].append((i, "input"))
+    elements = "".join(
+        f'<ssd:Component name="{name}" source="{source}"><ssd:Connectors>'
+        + "".join(f'<ssd:Connector name="{v}" kind="{k}"/>' for v, k in dict(connectors[name]).items())
+        + "</ssd:Connectors></ssd:Component>\n"
+        for name, source in components.items()
+    )
+    links = "".join(
+        f'<ssd:Connection startElement="{s}" startConnector="{o}" endElement="{e}" endConnector="{i}"/>\n'
+        for s, o, e, i in connections
+    )
+    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="{path.stem}"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="{path.stem}">
+    <ssd:Elements>
+{elements}    </ssd:Elements>
+    <ssd:Connections>
+{links}    </ssd:Connections>
+    <ssd:Annotations>
+      <ssc:Annotation type="org.multirate-master.settings">
+        <mm:Settings macroStep="{macro_step}">{settings}</mm:Settings>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment stopTime="{stop}"/>
+</ssd:SystemStructureDescription>
+""")
+    return path
