@@ -216,7 +216,7 @@ def run(
                 )
         columns = p.columns
         try:  # before anything runs: a results file that cannot be written stops it at once
-            recorder = Recorder(columns, Path(output) if output is not None else None)
+            recorder = Recorder(columns, Path(output) if output is not None else None, wide=_wide(sc, p))
         except ResultsError as e:
             raise UsageError(str(e)) from None
         try:
@@ -234,6 +234,7 @@ def run(
         except SimulationError as e:
             summary = e.summary  # type: ignore[attr-defined]
             summary.output = str(output) if output is not None else None
+            summary.notes += _rounded(recorder)
             _write_metadata(output, summary, sc, p)
             e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
             raise
@@ -243,6 +244,7 @@ def run(
         finally:
             be.close()
     summary.output = str(output) if output is not None else None
+    summary.notes += _rounded(recorder)
     _write_metadata(output, summary, sc, p)
     result = RunResult(recorder, summary)
     if plot is not None:
@@ -253,6 +255,22 @@ def run(
         except (OSError, ValueError) as e:  # PIL raises either for a path it cannot write
             raise UsageError(f"--plot {plot}: cannot write the plot there ({e})") from None
     return result
+
+
+def _rounded(recorder: Recorder) -> list[str]:
+    """Notes on recorded 64-bit integers that no float64 holds (the results have them rounded)."""
+    return [f"{c}: {n} recorded values beyond 2^53 in magnitude, rounded to the nearest float64 (a 64-bit "
+            "integer there has none exactly)" for c, n in recorder.rounded.items()]  # fmt: skip
+
+
+def _wide(sc: Scenario, p: Plan) -> tuple[str, ...]:
+    """The recorded columns of FMI 3 Int64 and UInt64 variables (elements too)."""
+    from master.scenario.fmuinfo import lookup
+
+    described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
+    found = {(c, v): lookup(described[c], v) for c, v in p.record}
+    return tuple(f"{c}.{v}" for (c, v), hit in found.items()
+                 if hit and (hit[0].fmi_type or hit[0].type) in ("Int64", "UInt64"))  # fmt: skip
 
 
 def metadata_path(csv: str | Path) -> Path:

@@ -33,11 +33,24 @@ class ResultsError(OSError):
     """Results cannot be written: names the file and why."""
 
 
+EXACT_INTEGERS = 2.0**53  # every integer up to this magnitude is a float64
+
+
 class Recorder:
     """Collects rows of `len(columns)` floats; `columns[0]` is "time"."""
 
-    def __init__(self, columns: list[str], csv_path: Path | None = None, chunk_rows: int = CHUNK_ROWS):
+    def __init__(
+        self,
+        columns: list[str],
+        csv_path: Path | None = None,
+        chunk_rows: int = CHUNK_ROWS,
+        wide: tuple[str, ...] = (),
+    ):
+        """wide: columns of 64-bit integers, whose values beyond 2^53 in magnitude no float64 holds
+        exactly: `rounded` counts them per column (the run summary says so)."""
         self.columns = columns
+        self._wide = [columns.index(c) for c in wide]
+        self.rounded: dict[str, int] = {}
         self.dtype = np.dtype([(c, np.float64) for c in columns])
         self.chunk = np.zeros((chunk_rows, len(columns)))
         self.fill = 0
@@ -81,6 +94,10 @@ class Recorder:
             self.fill = 0
 
     def _append(self, block: np.ndarray) -> None:
+        for i in self._wide:
+            beyond = int(np.count_nonzero(np.abs(block[:, i]) > EXACT_INTEGERS))
+            if beyond:
+                self.rounded[self.columns[i]] = self.rounded.get(self.columns[i], 0) + beyond
         try:
             self._bin.write(block.tobytes())
             if self._csv is not None:

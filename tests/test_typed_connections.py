@@ -342,6 +342,23 @@ def test_an_int64_beyond_minus_2_to_the_53_stops_the_run_too():
         api.run(sc, backend="in-process")
 
 
+def test_a_recorded_64_bit_integer_beyond_2_to_the_53_is_rounded_with_a_note():
+    """Recorded, not connected: the run goes on, the value is the nearest float64, and the summary
+    says how many such values each column has (none for a column within 2^53)."""
+    fmu = alltypes()
+    big = 2**60 + 1  # no float64 holds it
+    sc = Scenario(Path("wide.ssd"), "wide", (Component("a", fmu, {"p_uint64": big, "p_int64": 5}),), (),
+                  Fraction(0), Fraction(1), H, record=(("a", "y_uint64"), ("a", "y_int64")))  # fmt: skip
+    for backend in ("serial", "in-process"):
+        r = api.run(sc, backend=backend)
+        assert np.all(r.data["a.y_uint64"] == float(big)) and np.all(r.data["a.y_int64"] == 5.0)
+        rows = len(r.data)
+        assert [n for n in r.summary.notes if "2^53" in n] == [
+            f"a.y_uint64: {rows} recorded values beyond 2^53 in magnitude, rounded to the nearest float64 "
+            "(a 64-bit integer there has none exactly)"
+        ]
+
+
 def test_a_failing_typed_call_is_named_with_its_fmi_function():
     # 7 is an Int64 (the type of an FMI 3 Enumeration) but no item of Solver (1..6): the FMU refuses
     sc = Scenario(Path("item.ssd"), "item", (Component("a", alltypes()),), (), Fraction(0), Fraction(1), H,
