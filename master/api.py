@@ -265,12 +265,9 @@ def _rounded(recorder: Recorder) -> list[str]:
 
 def _wide(sc: Scenario, p: Plan) -> tuple[str, ...]:
     """The recorded columns of FMI 3 Int64 and UInt64 variables (elements too)."""
-    from master.scenario.fmuinfo import lookup
-
-    described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
-    found = {(c, v): lookup(described[c], v) for c, v in p.record}
-    return tuple(f"{c}.{v}" for (c, v), hit in found.items()
-                 if hit and (hit[0].fmi_type or hit[0].type) in ("Int64", "UInt64"))  # fmt: skip
+    find = _variables(sc)
+    wide = ("Int64", "UInt64")
+    return tuple(f"{c}.{v}" for c, v in p.record if getattr(find(c, v), "fmi_type", None) in wide)
 
 
 def metadata_path(csv: str | Path) -> Path:
@@ -302,15 +299,25 @@ def _units(sc: Scenario, p: Plan) -> dict[str, str | None]:
     """Unit of each recorded column "component.variable" from the FMUs' model descriptions (an
     array element: the array's unit); a coupling error column has the unit of the signal (its
     source output)."""
+    find = _variables(sc)
+    units = {f"{c}.{v}": getattr(find(c, v), "unit", None) for c, v in p.record}
+    for name, (source, output, *_) in zip(p.columns[1 + len(p.record) :], p.record_errors, strict=True):
+        units[name] = getattr(find(source, output), "unit", None)
+    return units
+
+
+def _variables(sc: Scenario):
+    """find(component, name): the model variable a recorded name means (an array element: its
+    array), None if none."""
     from master.scenario.fmuinfo import lookup
 
     described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
-    found = {(c, v): lookup(described[c], v) for c, v in p.record}
-    units = {f"{c}.{v}": found[c, v][0].unit if found[c, v] else None for c, v in p.record}
-    for name, (source, output, *_) in zip(p.columns[1 + len(p.record) :], p.record_errors, strict=True):
-        hit = lookup(described[source], output)
-        units[name] = hit[0].unit if hit else None
-    return units
+
+    def find(component: str, name: str):
+        hit = lookup(described[component], name)
+        return hit[0] if hit else None
+
+    return find
 
 
 def validate(path: str | Path) -> list:

@@ -66,7 +66,6 @@ class Trial:
     config: Config
     ok: bool  # stable and within the tolerance
     error: float  # worst scaled max error (inf: did not finish)
-    wall_time: float  # stepping wall time of the pilot run (s)
     status: str  # "finished", or why it is not a candidate
     rho: float = math.nan  # spectral radius of the linearised macro-step map (nan: no analysis)
 
@@ -77,7 +76,6 @@ class Choice:
 
     family: str
     trial: Trial
-    tried: int  # pilot runs it took
     timed: list[float] = field(default_factory=list)  # final wall times (serial backend)
 
     cost: float = math.inf  # modelled wall time (s) over the pilot horizon (`_Pilot.cost`)
@@ -193,18 +191,18 @@ class _Pilot:
             scheme = bench.linear_scheme(self.lin, self.p, c)
             rho = spectral_radius(scheme, float(c.macro_step))
             if not is_stable(scheme, float(c.macro_step)):
-                return Trial(c, False, math.inf, 0.0, f"unstable by the linear analysis (rho {rho:.4f})", rho)
+                return Trial(c, False, math.inf, f"unstable by the linear analysis (rho {rho:.4f})", rho)
         scene = bench.apply(self.sc, self.p, c)
         try:
             with _quiet():
                 res = run(scene, backend="in-process")
         except SimulationError as e:
-            return Trial(c, False, math.inf, e.result.summary.wall_time, str(e).split(" (hint")[0], rho)
+            return Trial(c, False, math.inf, str(e).split(" (hint")[0], rho)
         self._learn(res.summary, scene)
         rep = compare(as_trajectory(res.data), self.ref, list(self.p.variables) if self.p.variables else None)
         ok = rep.worst_max <= self.tolerance
         status = "finished" if ok else f"error {rep.worst_max:.3g} ({rep.worst_max_variable})"
-        return Trial(c, ok, rep.worst_max, res.summary.wall_time, status, rho)
+        return Trial(c, ok, rep.worst_max, status, rho)
 
     # The cost model: the least wall time per communication step of each component with each
     # solver inside its FMU calls, and of the master per macro step, over the pilot runs so far.
@@ -324,10 +322,9 @@ def tune(
             near = best.trial.config.macro_step if best else p.base.macro_step
             start = min(range(len(steps)), key=lambda i: abs(math.log(steps[i] / near)))
             bound = PRUNE * best.cost if best else math.inf
-            before = len(pilot.trials)
             trial, why = largest_step(pilot, c, steps, start, bound)
             if trial.ok:
-                choices.append(Choice(name, trial, len(pilot.trials) - before))
+                choices.append(Choice(name, trial))
             else:
                 failed.append((name, trial, why))
 

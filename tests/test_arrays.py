@@ -20,11 +20,11 @@ import sys
 import zipfile
 from collections.abc import Callable
 from fractions import Fraction
-from math import prod
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import lagrange, run_everywhere
 
 import master.api as api
 from master.fmu import read_description, variables_of
@@ -37,30 +37,10 @@ from master.schedule import PlanError
 
 SCENES = Path(__file__).parent / "scenarios"
 ARRAYS = SCENES / "fmi3" / "arrays.ssd"  # c.wave, c.ticks -> a.u_vec, a.u_ivec; a.y_vec, a.y_ivec -> b
-BACKENDS = ("serial", "parallel", "in-process")
 H = Fraction(1, 10)
 N = 20  # macro steps of arrays.ssd (stop time 2 s)
 P_INT32 = {"a": 1, "b": 10}  # a keeps the FMU's start value, arrays.ssd binds b's
 Y_MAT = [1.0, -3.5, 2.0, 1.0]  # b's p_mat = [[1, 2], [-3.5, 1]] (two elements bound), transposed
-
-
-def lagrange(points: list[tuple[Fraction, Fraction]], x: Fraction) -> Fraction:
-    """The polynomial through `points` (time, value) at time x, exactly."""
-    return sum(
-        (y * prod((x - tk) / (tj - tk) for k, (tk, _) in enumerate(points) if k != j)
-         for j, (tj, y) in enumerate(points)),
-        Fraction(0),
-    )  # fmt: skip
-
-
-def run_everywhere(sc: Scenario) -> np.ndarray:
-    """The results of `sc`, the same bits in every backend."""
-    rows = {b: api.run(sc, backend=b).data for b in BACKENDS}
-    for backend, d in rows.items():
-        assert d.dtype.names == rows["serial"].dtype.names
-        for name in d.dtype.names:
-            assert np.array_equal(d[name], rows["serial"][name]), (backend, name)
-    return rows["serial"]
 
 
 def columns(d: np.ndarray, name: str, n: int) -> list[list[float]]:

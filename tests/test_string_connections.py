@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scenefile import ssd
+from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
 from master.backends.component import output_names
@@ -29,7 +29,6 @@ from master.runtime.tables import layout
 from master.scenario import validate
 from master.scenario.model import Component, Connection, Scenario, Stimulus
 
-BACKENDS = ("serial", "parallel", "in-process")
 H = Fraction(1, 10)
 STOP = Fraction(2)
 N = int(STOP / H)
@@ -103,15 +102,6 @@ def check_rows(d: np.ndarray, component: str, inputs: list[bytes]) -> None:
     expected = np.array([length_and_code(u) for u in inputs], dtype=float)
     assert np.array_equal(d[f"{component}.y_length"], expected[:, 0]), component
     assert np.array_equal(d[f"{component}.y_code"], expected[:, 1]), component
-
-
-def run_everywhere(sc: Scenario) -> np.ndarray:
-    """The results of `sc`, the same bits in every backend."""
-    rows = {b: api.run(sc, backend=b).data for b in BACKENDS}
-    for backend, d in rows.items():
-        for name in d.dtype.names:
-            assert np.array_equal(d[name], rows["serial"][name]), (backend, name)
-    return rows["serial"]
 
 
 def scenario(comps, conns, coupling: str, stimuli=(), record=()) -> Scenario:

@@ -15,12 +15,11 @@ import shutil
 import subprocess
 import sys
 from fractions import Fraction
-from math import prod
 from pathlib import Path
 
 import numpy as np
 import pytest
-from scenefile import ssd
+from helpers import BACKENDS, lagrange, run_everywhere, ssd
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -28,7 +27,6 @@ from master.scenario import validate
 from master.scenario.fmuinfo import connection_problem
 from master.scenario.model import Component, Connection, Scenario, Stimulus
 
-BACKENDS = ("serial", "parallel", "in-process")
 H = Fraction(1, 10)
 STOP = Fraction(2)
 N = int(STOP / H)
@@ -87,15 +85,6 @@ def stimulus(t: str, time: float):
     return value
 
 
-def lagrange(points: list[tuple[Fraction, Fraction]], x: Fraction) -> Fraction:
-    """The polynomial through `points` (time, value) at time x, exactly."""
-    return sum(
-        (y * prod((x - tk) / (tj - tk) for k, (tk, _) in enumerate(points) if k != j)
-         for j, (tj, y) in enumerate(points)),
-        Fraction(0),
-    )  # fmt: skip
-
-
 def alltypes() -> Path:
     return fmu_path("alltypes", fmi=3)
 
@@ -116,15 +105,6 @@ def chain(coupling: str, ka: int, kb: int) -> Scenario:
     order = ("a", "b") if coupling == "gauss-seidel" else ()
     return Scenario(Path("chain.ssd"), "typed chain", comps, conns, Fraction(0), STOP, H, coupling=coupling,
                     order=order, stimuli=stimuli, record=record)  # fmt: skip
-
-
-def run_everywhere(sc: Scenario) -> np.ndarray:
-    """The results of `sc`, the same bits in every backend."""
-    rows = {b: api.run(sc, backend=b).data for b in BACKENDS}
-    for backend, d in rows.items():
-        for name in d.dtype.names:
-            assert np.array_equal(d[name], rows["serial"][name]), (backend, name)
-    return rows["serial"]
 
 
 @pytest.mark.parametrize(

@@ -343,27 +343,16 @@ class CompiledPlan:
 
         c_links = (native.Link * max(len(links), 1))()
         for i, lk in enumerate(links):
-            slot = in_names.index(lk.inputs[0])
-            src_out = self.outs[lk.source]
-            n_plain, n_relaxed, offsets, w, zero = link_tables(lk, blocks)
             link_vrs = _vrs(fmu, lk.inputs)
             step_s = float(plan.component(lk.source).step)
             scale = [step_s**d for _, d in blocks]
-            c_links[i] = native.Link(
-                source=self.names.index(lk.source),
-                k_source=lk.k_source,
-                ahead=int(lk.source_first),
-                n_cols=len(lk.inputs),
-                slot0=slot,
-                columns=_ptr(self._array([src_out.index(o) for o in lk.outputs], np.int32), C.c_int32),
+            c_links[i] = self._link(
+                lk,
+                blocks,
+                self.outs[lk.source],
+                in_names.index(lk.inputs[0]),
                 n_vrs=len(link_vrs),
                 vrs=_ptr(self._array(link_vrs, np.uint32), C.c_uint32),
-                terms=lk.order + 1,
-                n_plain=n_plain,
-                n_relaxed=n_relaxed,
-                offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
-                weights=_ptr(self._array(w, np.float64), C.c_double),
-                zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
                 scale=_ptr(self._array(scale, np.float64), C.c_double),
                 **self._estimate(lk),
             )
@@ -423,6 +412,26 @@ class CompiledPlan:
         self._keep.append(calls)
         return len(groups), calls
 
+    def _link(self, lk: Link, blocks: list[tuple[int, int]], source_columns: list[str], slot0: int, **extra):
+        """kernel.h's mk_link of `lk`: its inputs from slot0 on, driven by `source_columns`
+        (the source's history or string ring) through the polynomial tables of `blocks`."""
+        n_plain, n_relaxed, offsets, w, zero = link_tables(lk, blocks)
+        return native.Link(
+            source=self.names.index(lk.source),
+            k_source=lk.k_source,
+            ahead=int(lk.source_first),
+            n_cols=len(lk.inputs),
+            slot0=slot0,
+            columns=_ptr(self._array([source_columns.index(o) for o in lk.outputs], np.int32), C.c_int32),
+            terms=lk.order + 1,
+            n_plain=n_plain,
+            n_relaxed=n_relaxed,
+            offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
+            weights=_ptr(self._array(w, np.float64), C.c_double),
+            zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
+            **extra,
+        )
+
     def _string_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu, links: list[Link]) -> None:
         """A component's String connections (kernel.h): its coupled String outputs (their ring is
         set in `_component`), its String inputs and the held links into them, of one term."""
@@ -439,23 +448,9 @@ class CompiledPlan:
         buffer = np.zeros((pc.ratio, max(len(inputs), 1), native.STRING_SLOT), np.uint8)
         c.string_u = _ptr(self._array(buffer, np.uint8), C.c_char)
         c_links = (native.Link * max(len(links), 1))()
-        for i, lk in enumerate(links):
-            n_plain, n_relaxed, offsets, w, zero = link_tables(lk, [(0, 0)])  # held: one term of weight 1
-            source_texts = string_output_names(self.plan, lk.source)
-            c_links[i] = native.Link(
-                source=self.names.index(lk.source),
-                k_source=lk.k_source,
-                ahead=int(lk.source_first),
-                n_cols=len(lk.inputs),
-                slot0=inputs.index(lk.inputs[0]),
-                columns=_ptr(self._array([source_texts.index(o) for o in lk.outputs], np.int32), C.c_int32),
-                terms=lk.order + 1,
-                n_plain=n_plain,
-                n_relaxed=n_relaxed,
-                offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
-                weights=_ptr(self._array(w, np.float64), C.c_double),
-                zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
-            )
+        for i, lk in enumerate(links):  # held: one term of weight 1
+            texts = string_output_names(self.plan, lk.source)
+            c_links[i] = self._link(lk, [(0, 0)], texts, inputs.index(lk.inputs[0]))
         c.n_string_links, c.string_links = len(links), c_links
         self._keep.append(c_links)
 

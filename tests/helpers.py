@@ -1,8 +1,37 @@
-"""Scenario files for tests: a few components, their connections and settings, written as SSD."""
+"""Helpers of the connection tests: scenario files written as SSD, runs in every backend, exact
+polynomials."""
 
 from __future__ import annotations
 
+from fractions import Fraction
+from math import prod
 from pathlib import Path
+
+import numpy as np
+
+import master.api as api
+from master.scenario.model import Scenario
+
+BACKENDS = ("serial", "parallel", "in-process")
+
+
+def run_everywhere(sc: Scenario) -> np.ndarray:
+    """The results of `sc`, the same columns and bits in every backend."""
+    rows = {b: api.run(sc, backend=b).data for b in BACKENDS}
+    for backend, d in rows.items():
+        assert d.dtype.names == rows["serial"].dtype.names
+        for name in d.dtype.names:
+            assert np.array_equal(d[name], rows["serial"][name]), (backend, name)
+    return rows["serial"]
+
+
+def lagrange(points: list[tuple[Fraction, Fraction]], x: Fraction) -> Fraction:
+    """The polynomial through `points` (time, value) at time x, exactly."""
+    return sum(
+        (y * prod((x - tk) / (tj - tk) for k, (tk, _) in enumerate(points) if k != j)
+         for j, (tj, y) in enumerate(points)),
+        Fraction(0),
+    )  # fmt: skip
 
 
 def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str, str, str]],
