@@ -33,6 +33,24 @@ class Backend(Protocol):
 BUDGET = 0.1  # s: the longest a backend runs before Python sees signals and shows progress
 
 
+STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Within: the stop signals wait (blocked, then delivered on leaving), so that moving rows to
+    the recorder and counting them as moved happen together: a stop between the two wrote some
+    rows twice (or half a block) when the rows left over were drained at the stop."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, STOPS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised where Python would raise KeyboardInterrupt for SIGINT."""
 

@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable
 
 from master.backends.component import open_fmu, output_names
+from master.backends.driver import signals_deferred
 from master.fmu import Fmu
 from master.recorder import Recorder
 from master.runtime.tables import CompiledPlan, Memory, coupling_errors, layout, pacing_stats
@@ -40,7 +41,8 @@ class InProcessBackend:
         row at the start time."""
         assert self.compiled is not None
         initialize(self.compiled, self.fmus)
-        recorder.write(self.compiled.take_rows())
+        with signals_deferred():
+            recorder.write(self.compiled.take_rows())
 
     def pace(self, factor: float) -> None:
         """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
@@ -55,7 +57,8 @@ class InProcessBackend:
         try:
             return cp.run(n_from, n_to, budget)[1]
         finally:
-            recorder.write(cp.take_rows())
+            with signals_deferred():
+                recorder.write(cp.take_rows())
 
     @property
     def position(self) -> int:

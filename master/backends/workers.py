@@ -26,6 +26,7 @@ from functools import partial
 import numpy as np
 
 from master.backends.component import SimulationError, open_fmu, output_names
+from master.backends.driver import signals_deferred
 from master.backends.in_process import initialize_sweeps
 from master.backends.worker import WorkerFailure, WorkerPool, cpu_count
 from master.fmu import Fmu, FmuError, read_description, variables_of
@@ -336,8 +337,9 @@ class WorkerBackend:
         assert self.memory is not None
         done = min(counter(self.memory, "rows_written", w).value for w in range(len(self.groups)))
         if done > self.drained:
-            recorder.write(ring_rows(self.memory["rows"], self.drained, done))
-            self.drained = done
+            with signals_deferred():
+                recorder.write(ring_rows(self.memory["rows"], self.drained, done))
+                self.drained = done
             self.lib.mk_publish(counter(self.memory, "rows_drained"), done)
         done = min(counter(self.memory, "published", i).value for i in range(len(self.names)))
         self.position = min(done, counter(self.memory, "stop_at").value)
