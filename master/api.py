@@ -216,7 +216,7 @@ def run(
                 )
         columns = p.columns
         try:  # before anything runs: a results file that cannot be written stops it at once
-            recorder = Recorder(columns, Path(output) if output is not None else None, wide=_wide(sc, p))
+            recorder = Recorder(columns, Path(output) if output is not None else None, types=p.column_types)
         except ResultsError as e:
             raise UsageError(str(e)) from None
         try:
@@ -234,7 +234,6 @@ def run(
         except SimulationError as e:
             summary = e.summary  # type: ignore[attr-defined]
             summary.output = str(output) if output is not None else None
-            summary.notes += _rounded(recorder)
             _write_metadata(output, summary, sc, p)
             e.result = RunResult(recorder, summary)  # type: ignore[attr-defined]
             raise
@@ -244,7 +243,6 @@ def run(
         finally:
             be.close()
     summary.output = str(output) if output is not None else None
-    summary.notes += _rounded(recorder)
     _write_metadata(output, summary, sc, p)
     result = RunResult(recorder, summary)
     if plot is not None:
@@ -255,19 +253,6 @@ def run(
         except (OSError, ValueError) as e:  # PIL raises either for a path it cannot write
             raise UsageError(f"--plot {plot}: cannot write the plot there ({e})") from None
     return result
-
-
-def _rounded(recorder: Recorder) -> list[str]:
-    """Notes on recorded 64-bit integers that no float64 holds (the results have them rounded)."""
-    return [f"{c}: {n} recorded values beyond 2^53 in magnitude, rounded to the nearest float64 (a 64-bit "
-            "integer there has none exactly)" for c, n in recorder.rounded.items()]  # fmt: skip
-
-
-def _wide(sc: Scenario, p: Plan) -> tuple[str, ...]:
-    """The recorded columns of FMI 3 Int64 and UInt64 variables (elements too)."""
-    find = _variables(sc)
-    wide = ("Int64", "UInt64")
-    return tuple(f"{c}.{v}" for c, v in p.record if getattr(find(c, v), "fmi_type", None) in wide)
 
 
 def metadata_path(csv: str | Path) -> Path:

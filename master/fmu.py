@@ -57,6 +57,8 @@ RAW_NAMES = {
         "free_state": "fmi3FreeFMUState",
         "get_string": "fmi3GetString",
         "set_string": "fmi3SetString",
+        "get_binary": "fmi3GetBinary",
+        "set_binary": "fmi3SetBinary",
     },
 }
 

@@ -2,10 +2,16 @@
 
 Rows (time in s, then one column per "component.variable" and, when asked, one per extrapolated
 connection, "coupling_error(source.output -> consumer.input)") are buffered in a preallocated
-chunk and streamed to disk when it fills: a raw float64 file (read back as a numpy structured
-array) and, when asked, a CSV file that `read_csv` reads, and `fmpy.util.read_csv` too unless a
-name holds a comma (an element of an FMI 3 matrix, "c.m[1,2]", quoted: fmpy's reader splits the
-header at every comma). Memory stays flat however long the run.
+chunk and streamed to disk when it fills: a raw file of 8 bytes a value (read back as a numpy
+structured array) and, when asked, a CSV file that `read_csv` reads, and `fmpy.util.read_csv`
+too unless a name holds a comma (an element of an FMI 3 matrix, "c.m[1,2]", quoted: fmpy's reader
+splits the header at every comma) or a column holds text. Memory stays flat however long the run.
+
+Columns are float64 but those `types` names (master.scenario.fmuinfo.recorded_as): FMI 3 Int64
+and UInt64 values are held as int64 / uint64 (exact beyond 2^53), Strings as str and FMI 3
+Binaries as bytes. A String or Binary is written to a side file once per change of its column's
+value; the raw row holds its place there. In the CSV file a String is a quoted text, a Binary
+its bytes as quoted hex digits.
 """
 
 from __future__ import annotations
@@ -21,37 +27,44 @@ import numpy as np
 
 CHUNK_ROWS = 4096
 COUPLING_ERROR = "coupling_error("  # how a coupling error column's name begins (master.schedule)
+TEXT_TYPES = ("String", "Binary")
+_RAW = {"int64": np.int64, "uint64": np.uint64}  # raw column types other than float64
 
 
 def signal_columns(data: np.ndarray) -> list[str]:
-    """The recorded signals of a result array: every column but "time" and the coupling error
-    columns (which measure the coupling, not the system: comparisons and stability checks skip them)."""
-    return [n for n in data.dtype.names if n != "time" and not n.startswith(COUPLING_ERROR)]
+    """The recorded numeric signals of a result array: every column but "time", the coupling error
+    columns (which measure the coupling, not the system: comparisons and stability checks skip
+    them) and the Strings and Binaries."""
+    return [n for n in number_columns(data) if not n.startswith(COUPLING_ERROR)]
+
+
+def number_columns(data: np.ndarray) -> list[str]:
+    """The columns of a result array but "time" that hold numbers (not Strings or Binaries)."""
+    return [n for n in data.dtype.names if n != "time" and data.dtype[n].kind in "fiu"]
 
 
 class ResultsError(OSError):
     """Results cannot be written: names the file and why."""
 
 
-EXACT_INTEGERS = 2.0**53  # every integer up to this magnitude is a float64
-
-
 class Recorder:
-    """Collects rows of `len(columns)` floats; `columns[0]` is "time"."""
+    """Collects rows of `len(columns)` values of 8 bytes; `columns[0]` is "time"."""
 
     def __init__(
         self,
         columns: list[str],
         csv_path: Path | None = None,
         chunk_rows: int = CHUNK_ROWS,
-        wide: tuple[str, ...] = (),
+        types: dict[str, str] | None = None,
     ):
-        """wide: columns of 64-bit integers, whose values beyond 2^53 in magnitude no float64 holds
-        exactly: `rounded` counts them per column (the run summary says so)."""
+        """types: column -> "int64", "uint64", "String" or "Binary" for those not float64 (a row
+        holds an int64's or uint64's bits in its 8 bytes; a String's or Binary's come with the
+        rows, `write`)."""
         self.columns = columns
-        self._wide = [columns.index(c) for c in wide]
-        self.rounded: dict[str, int] = {}
-        self.dtype = np.dtype([(c, np.float64) for c in columns])
+        self.types = {c: t for c, t in (types or {}).items() if c in columns and t != "float64"}
+        self._text = [i for i, c in enumerate(columns) if self.types.get(c) in TEXT_TYPES]
+        self._last: list[tuple[bytes, int] | None] = [None] * len(self._text)  # per text column
+        self.dtype = np.dtype([(c, _RAW.get(self.types.get(c, ""), np.float64)) for c in columns])
         self.chunk = np.zeros((chunk_rows, len(columns)))
         self.fill = 0
         self.rows = 0
@@ -69,6 +82,9 @@ class Recorder:
         self.tmpdir = Path(tempfile.mkdtemp(prefix="master_results_"))
         self.bin_path = self.tmpdir / "results.bin"
         self._bin = open(self.bin_path, "wb")
+        self.texts_path = self.tmpdir / "texts.bin"  # each: its length (8 bytes), its bytes
+        self._texts = open(self.texts_path, "w+b") if self._text else None
+        self._text_cache: dict[int, bytes] = {}
 
     def next_row(self) -> np.ndarray:
         """The row to fill next (a view into the chunk); call `commit()` once it is filled."""
@@ -80,12 +96,48 @@ class Recorder:
         if self.fill == len(self.chunk):
             self.flush()
 
-    def write(self, rows: np.ndarray) -> None:
-        """Append a block of filled rows (n x len(columns)), e.g. the kernel's results buffer."""
-        if len(rows):
-            self.flush()
-            self._append(rows)
-            self.rows += len(rows)
+    def write(self, rows: np.ndarray, texts: np.ndarray | None = None) -> None:
+        """Append a block of filled rows (n x len(columns)), e.g. the kernel's results ring, and
+        with them their Strings and Binaries: texts[row][j] the j-th text column's slot (kernel.h
+        MK_STRING_SLOT: a uint64 length, then the bytes)."""
+        if not len(rows):
+            return
+        self.flush()
+        if self._text and texts is not None:
+            rows = np.array(rows)  # the ring's rows stay as they are
+            for j, col in enumerate(self._text):
+                rows[:, col] = [self._place(j, slot) for slot in texts[:, j]]
+        self._append(rows)
+        self.rows += len(rows)
+
+    def _place(self, j: int, slot: np.ndarray) -> int:
+        """Where text column j's value of one row lies in the side file (appended if it changed)."""
+        n = int(slot[:8].view(np.uint64)[0])
+        value = slot[8 : 8 + n].tobytes()
+        last = self._last[j]
+        if last is not None and last[0] == value:
+            return last[1]
+        assert self._texts is not None
+        self._texts.seek(0, 2)
+        place = self._texts.tell()
+        self._texts.write(np.uint64(n).tobytes() + value)
+        self._last[j] = (value, place)
+        return place
+
+    def _text_at(self, place: int) -> bytes:
+        value = self._text_cache.get(place)
+        if value is None:
+            assert self._texts is not None
+            self._texts.flush()
+            with open(self.texts_path, "rb") as f:
+                f.seek(place)
+                n = int(np.frombuffer(f.read(8), np.uint64)[0])
+                value = self._text_cache[place] = f.read(n)
+        return value
+
+    def _value(self, column: str, raw: bytes) -> str | bytes:
+        """A String (str) or Binary (bytes) from its stored bytes."""
+        return raw.decode("utf-8", "replace") if self.types[column] == "String" else raw
 
     def flush(self) -> None:
         """Write the buffered rows to disk."""
@@ -94,17 +146,32 @@ class Recorder:
             self.fill = 0
 
     def _append(self, block: np.ndarray) -> None:
-        for i in self._wide:
-            beyond = int(np.count_nonzero(np.abs(block[:, i]) > EXACT_INTEGERS))
-            if beyond:
-                self.rounded[self.columns[i]] = self.rounded.get(self.columns[i], 0) + beyond
         try:
-            self._bin.write(block.tobytes())
+            self._bin.write(np.ascontiguousarray(block).tobytes())
             if self._csv is not None:
-                np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
+                if self.types:
+                    self._csv.writelines(self._csv_lines(block))
+                else:
+                    np.savetxt(self._csv, block, delimiter=",", fmt="%.17g")
         except OSError as e:  # a full disk, a file system gone read-only
             where = self.csv_path if self._csv is not None else self.bin_path
             raise ResultsError(f"{where}: cannot write the results ({e.strerror or e})") from None
+
+    def _csv_lines(self, block: np.ndarray) -> list[str]:
+        """CSV lines of rows with typed columns: numbers as `np.savetxt` writes floats (%.17g),
+        64-bit integers in full, Strings quoted, Binaries as quoted hex digits."""
+        cells = []
+        for i, name in enumerate(self.columns):
+            x, t = block[:, i], self.types.get(name)
+            if t in _RAW:
+                cells.append([str(v) for v in x.view(_RAW[t])])
+            elif t in TEXT_TYPES:
+                shown = {p: self._text_at(p) for p in map(int, x)}
+                cells.append([_quoted(shown[int(p)].hex() if t == "Binary" else shown[int(p)].decode(
+                    "utf-8", "replace")) for p in x])  # fmt: skip
+            else:
+                cells.append([f"{v:.17g}" for v in x])
+        return [",".join(row) + "\n" for row in zip(*cells, strict=True)]
 
     def close(self) -> None:
         """Flush and close the files (the results stay readable through `data()`)."""
@@ -115,34 +182,73 @@ class Recorder:
             self._csv.close()
 
     def data(self) -> np.ndarray:
-        """All rows as a structured array with fields "time", "component.variable", ..."""
+        """All rows as a structured array with fields "time", "component.variable", ... (float64;
+        int64 / uint64, and object for Strings (str) and Binaries (bytes), where `types` says)."""
         if not self._bin.closed:
             self.flush()
             self._bin.flush()
-        return np.fromfile(self.bin_path, dtype=self.dtype)
+        raw = np.fromfile(self.bin_path, dtype=self.dtype)
+        if not self._text:
+            return raw
+        texts = {self.columns[i] for i in self._text}
+        dtype = np.dtype([(c, object if c in texts else raw.dtype[c]) for c in self.columns])
+        out = np.empty(len(raw), dtype)
+        for c in self.columns:
+            if c in texts:
+                values = {p: self._value(c, self._text_at(p)) for p in set(map(int, raw[c]))}
+                out[c] = [values[int(p)] for p in raw[c]]
+            else:
+                out[c] = raw[c]
+        return out
 
     def discard(self) -> None:
-        """Remove the raw file (the CSV, if any, stays)."""
+        """Remove the raw files (the CSV, if any, stays)."""
         self.close()
+        if self._texts is not None and not self._texts.closed:
+            self._texts.close()
         shutil.rmtree(self.tmpdir, ignore_errors=True)
+
+
+def _quoted(text: str) -> str:
+    return '"' + text.replace('"', '""') + '"'
 
 
 def read_csv(path: str | Path) -> np.ndarray:
     """A results CSV file (`Recorder`'s, or any of numbers under a header of quoted or plain
-    names) as a structured array with a float64 field per column. ValueError if it is not one."""
+    names) as a structured array: a float64 field per column of numbers (64-bit integers beyond
+    2^53 rounded), an object field of str per column of quoted texts (a Binary's hex digits).
+    ValueError if it is not one."""
     with open(path, newline="") as f:
-        header = next(csv.reader(f), None)
+        header = next(csv.reader([f.readline()]), None)
         if not header:
             raise ValueError("no header line")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # no rows: an empty result
-            rows = np.loadtxt(f, delimiter=",", ndmin=2)
+        start = f.tell()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # no rows: an empty result
+                rows = np.loadtxt(f, delimiter=",", ndmin=2)
+        except ValueError:  # quoted texts among the numbers
+            f.seek(start)
+            return _read_typed(list(csv.reader(f, quoting=csv.QUOTE_NONNUMERIC)), header)
     if rows.size == 0:
         rows = np.zeros((0, len(header)))
     if rows.shape[1] != len(header):
         raise ValueError(f"{len(header)} names in the header, {rows.shape[1]} values a row")
     dtype = np.dtype([(name, np.float64) for name in header])
     return np.ascontiguousarray(rows, dtype=np.float64).view(dtype).reshape(-1)
+
+
+def _read_typed(rows: list[list], header: list[str]) -> np.ndarray:
+    """Rows read with quoted cells as str and the others as float: a column of texts is an object
+    field, any other a float64 one."""
+    if any(len(r) != len(header) for r in rows):
+        raise ValueError(f"{len(header)} names in the header, rows of other lengths")
+    texts = {i for r in rows for i, v in enumerate(r) if isinstance(v, str)}
+    dtype = np.dtype([(n, object if i in texts else np.float64) for i, n in enumerate(header)])
+    out = np.empty(len(rows), dtype)
+    for i, name in enumerate(header):
+        out[name] = [r[i] for r in rows]
+    return out
 
 
 @dataclass
@@ -255,7 +361,7 @@ def plot_result(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = columns or [n for n in data.dtype.names if n != "time"]
+    names = columns or number_columns(data)
     groups: dict[tuple[str, str | None], list[str]] = {}
     for n in names:
         what = "coupling error " if n.startswith(COUPLING_ERROR) else ""

@@ -23,6 +23,7 @@ from master.scenario.fmuinfo import (
     element_names,
     lookup,
     recordable,
+    recorded_as,
     stimulus_problem,
     stimulus_value_problem,
     typed,
@@ -77,7 +78,7 @@ class Clock:
 
 
 # what numeric connections carry (fmuinfo.coupling_kind), in the kernel's order of inputs and
-# outputs; String connections (kind fmuinfo.TEXT) have rings and inputs of their own (kernel.h)
+# outputs; String and Binary connections (fmuinfo.TEXTS) have rings and inputs of their own (kernel.h)
 KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64",
          "UInt64")  # fmt: skip
 
@@ -87,7 +88,7 @@ def _article(word: str | None) -> str:
 
 
 def value_kind(v: VariableInfo, fmi_version: str) -> str | None:
-    """The kind (`KINDS`, or "String") of a variable's value as connections carry it, None for Binary."""
+    """The kind (`KINDS`, "String" or "Binary") of a variable's value as connections carry it."""
     return coupling_kind(v.fmi_type or v.type, fmi_version)
 
 
@@ -103,7 +104,7 @@ class Link:
     source_first: bool  # the source completes the macro step before the consumer starts it
     k_source: int  # effective step ratios
     k_consumer: int
-    kind: str = "Real"  # what it carries (`KINDS` or "String"): Real, Float32, or a held kind (order 0)
+    kind: str = "Real"  # what it carries (`KINDS`, "String", "Binary"): Real, Float32 or a held kind
 
     def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
@@ -169,6 +170,15 @@ class Plan:
     # Scenario.record_coupling_errors: a column per extrapolated connection (source, output,
     # consumer, input) after the `record` columns, its latest coupling error (kernel.h: mk_link)
     record_errors: tuple[tuple[str, str, str, str], ...] = ()
+    # how the results hold each `record` column (fmuinfo.recorded_as); empty: every one a float64
+    record_types: tuple[str, ...] = ()
+
+    @property
+    def column_types(self) -> dict[str, str]:
+        """The columns the results do not hold as float64: name -> "int64", "uint64", "String" or
+        "Binary" (fmuinfo.recorded_as)."""
+        types = zip(self.record, self.record_types, strict=False)  # (none: every one a float64)
+        return {f"{c}.{v}": t for (c, v), t in types if t != "float64"}
 
     @property
     def columns(self) -> list[str]:
@@ -330,7 +340,7 @@ def build_plan(
         if not 0 <= order_ <= MAX_ORDER:
             raise _err(sc, f"{where}: extrapolation order {order_} not in 0..{MAX_ORDER}")
         if kinds[0] not in CONTINUOUS:
-            order_ = 0  # discrete signals (integers, Booleans, Strings) are held between communication points
+            order_ = 0  # discrete signals (integers, Booleans, texts) are held between communication points
         # an array drives an array of the same shape element by element: a pair per element
         outs, ins = element_names(cn.start_connector, shapes[0]), element_names(cn.end_connector, shapes[1])
         pairs = zip(outs, ins, strict=True)
@@ -421,6 +431,7 @@ def build_plan(
         if skipped:
             notes.append(f"not recorded: {', '.join(skipped)}; the runtime records {RECORDED}")
     columns: list[tuple[str, str]] = []  # an array: a column per element, y[1], y[2], ...
+    types: list[str] = []  # how the results hold each (fmuinfo.recorded_as)
     for comp, var in record:
         if comp not in variables:
             raise _err(sc, f"record {comp}.{var}: no component {comp!r}")
@@ -437,6 +448,7 @@ def build_plan(
             if (comp, name) in columns:
                 raise _err(sc, f"record {comp}.{var}: recorded twice")
             columns.append((comp, name))
+            types.append(recorded_as(v.fmi_type or v.type))
     record = tuple(columns)
     every = 1
     if sc.record_interval is not None:
@@ -467,6 +479,7 @@ def build_plan(
         stimuli=tuple(sc.stimuli),
         n_macro=n_macro,
         record=record,
+        record_types=tuple(types),
         record_every=every,
         macro_clock=Clock.make(start, H, 1),
         notes=tuple(notes),

@@ -98,8 +98,9 @@ def test_what_a_connection_carries_per_fmi_type():
     ]
     fmi3 = ("Float64", "Int32", "Boolean", "Enumeration", "Float32", "Int64", "UInt8", "String", "Binary")
     assert [coupling_kind(t, "3.0") for t in fmi3] == [
-        "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", "String", None
+        "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", "String", "Binary"
     ]  # fmt: skip
+    assert coupling_kind("Clock", "3.0") is None
 
 
 def test_a_step_stimulus_drives_an_integer_input():

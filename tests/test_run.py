@@ -14,6 +14,7 @@ import master.api as api
 from master.backends.component import SimulationError
 from master.fmu import Fmu, FmuError
 from master.fmubuild import fmu_path
+from master.recorder import read_csv as read_results
 from master.scenario.model import Component, Connection, Scenario, Stimulus
 
 LAG = '''
@@ -225,12 +226,11 @@ LABELLED = (
 )
 
 
-def test_a_string_output_is_left_out_of_the_default_record_with_a_note(tmp_path):
+def test_a_string_output_of_a_third_party_fmu_is_recorded_as_text(tmp_path):
     fmu = build_pythonfmu("Labelled", LABELLED, tmp_path)
     sc = scene([Component("c", fmu)])
-    plan = api.plan(sc)
-    assert plan.record == (("c", "y"),)
-    assert any("not recorded: c.label (String)" in n for n in plan.notes)
-    assert api.run(sc, backend="serial").data.dtype.names == ("time", "c.y")
-    with pytest.raises(api.PlanError, match="record c.label: it is String"):
-        api.plan(scene([Component("c", fmu)], record=(("c", "label"),)))
+    assert api.plan(sc).record == (("c", "y"), ("c", "label"))  # every output, the String too
+    result = api.run(sc, backend="serial", output=tmp_path / "out.csv")
+    assert list(result.data["c.label"]) == ["lag"] * len(result.data)
+    assert read_results(tmp_path / "out.csv")["c.label"].tolist() == ["lag"] * len(result.data)
+    assert (tmp_path / "out.csv").read_text().splitlines()[1].endswith(',"lag"')

@@ -227,7 +227,7 @@ def test_a_scenario_file_connects_and_stimulates_every_numeric_type():
 
 def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_ends(folder: Path):
     conns = [("a", "y_float32", "b", "u_float64"), ("a", "y_int8", "b", "u_int16"),
-             ("a", "y_binary", "b", "u_binary"), ("g", "y", "b", "u_float32"),
+             ("a", "y_binary", "b", "u_string"), ("g", "y", "b", "u_float32"),
              ("a", "y_enumeration", "b", "u_int64")]  # fmt: skip
     stimuli = (
         '<mm:Stimuli><mm:Table component="b" variable="u_int8"><mm:Point time="0" value="1"/></mm:Table>'
@@ -242,9 +242,8 @@ def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_end
         ("ssd:Connection a.y_float32 -> b.u_float64",
          "type mismatch: a.y_float32 is Float32, b.u_float64 is Float64"),
         ("ssd:Connection a.y_int8 -> b.u_int16", "type mismatch: a.y_int8 is Int8, b.u_int16 is Int16"),
-        ("ssd:Connection a.y_binary -> b.u_binary",
-         "a.y_binary is Binary: connections carry numeric, Boolean, Enumeration and String signals; Binary "
-         "ones cannot be connected"),
+        ("ssd:Connection a.y_binary -> b.u_string",
+         "type mismatch: a.y_binary is Binary, b.u_string is String"),
         ("ssd:Connection g.y -> b.u_float32", "type mismatch: g.y is Real, b.u_float32 is Float32"),
         ("ssd:Connection a.y_enumeration -> b.u_int64",
          "type mismatch: a.y_enumeration is Enumeration, b.u_int64 is Int64"),
@@ -322,21 +321,20 @@ def test_an_int64_beyond_minus_2_to_the_53_stops_the_run_too():
         api.run(sc, backend="in-process")
 
 
-def test_a_recorded_64_bit_integer_beyond_2_to_the_53_is_rounded_with_a_note():
-    """Recorded, not connected: the run goes on, the value is the nearest float64, and the summary
-    says how many such values each column has (none for a column within 2^53)."""
+def test_a_recorded_64_bit_integer_beyond_2_to_the_53_keeps_every_bit(folder: Path):
+    """Recorded, not connected: the results hold Int64 and UInt64 as int64 / uint64 (the row's 8
+    bytes carry the integer's bits), the CSV file writes them in full, in every backend."""
     fmu = alltypes()
-    big = 2**60 + 1  # no float64 holds it
-    sc = Scenario(Path("wide.ssd"), "wide", (Component("a", fmu, {"p_uint64": big, "p_int64": 5}),), (),
+    big, low = 2**64 - 3, -(2**62) - 1  # no float64 holds either
+    sc = Scenario(Path("wide.ssd"), "wide", (Component("a", fmu, {"p_uint64": big, "p_int64": low}),), (),
                   Fraction(0), Fraction(1), H, record=(("a", "y_uint64"), ("a", "y_int64")))  # fmt: skip
-    for backend in ("serial", "in-process"):
-        r = api.run(sc, backend=backend)
-        assert np.all(r.data["a.y_uint64"] == float(big)) and np.all(r.data["a.y_int64"] == 5.0)
-        rows = len(r.data)
-        assert [n for n in r.summary.notes if "2^53" in n] == [
-            f"a.y_uint64: {rows} recorded values beyond 2^53 in magnitude, rounded to the nearest float64 "
-            "(a 64-bit integer there has none exactly)"
-        ]
+    for backend in BACKENDS:
+        out = folder / f"{backend}.csv"
+        d = api.run(sc, backend=backend, output=out).data
+        assert (d.dtype["a.y_uint64"], d.dtype["a.y_int64"]) == (np.uint64, np.int64)
+        assert [int(v) for v in d["a.y_uint64"]] == [big] * len(d)  # u = 0: y = 0 + p, every row
+        assert [int(v) for v in d["a.y_int64"]] == [low] * len(d)
+        assert all(line.endswith(f",{big},{low}") for line in out.read_text().splitlines()[1:])
 
 
 def test_a_failing_typed_call_is_named_with_its_fmi_function():

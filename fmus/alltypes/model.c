@@ -17,6 +17,8 @@
  *   y_ivec    = u_ivec + p_int32            (Int32 vectors of 2, saturated)
  *   wave      = (sin t, cos 3t, t^3)        (a Float64 vector of 3 that depends on time only)
  *   ticks     = (k, -2 k), k = round(10 t)  (an Int32 vector of 2 that depends on time only)
+ *   stamp     = k % 3 + 1 bytes of value k % 256, then a zero byte (a Binary that depends on time
+ *               only: its length changes, and it ends in a zero)
  *   x' = u_float64, x(0) = 0                (continuous state, output x)
  * When the step that reaches t >= stop_at completes, the model ends the simulation
  * (fmi3DoStep: fmi3OK with *terminateSimulation = fmi3True).
@@ -48,7 +50,7 @@ enum {
     VR_P_MAT, VR_Y_MAT,
     VR_STOP_AT,
     VR_X, VR_DER_X,
-    VR_U_IVEC, VR_Y_IVEC, VR_WAVE, VR_TICKS,
+    VR_U_IVEC, VR_Y_IVEC, VR_WAVE, VR_TICKS, VR_STAMP,
     N_VARIABLES
 };
 
@@ -70,7 +72,7 @@ enum { W_INT8, W_UINT8 = 3, W_INT16 = 6, W_UINT16 = 9, W_UINT32 = 12, W_INT64 = 
 enum { Q_U_UINT64, Q_Y_UINT64, Q_P_UINT64, N_UINT64S };
 enum { B_U, B_Y, N_BOOLEANS };
 enum { S_U, S_Y, N_STRINGS };
-enum { X_U, X_Y, N_BINARIES };
+enum { X_U, X_Y, X_STAMP, N_BINARIES };
 
 /* The dependency strings below name value references literally: keep them in step. */
 #define SAME(a, b) typedef char same_##a[(a) == (b) ? 1 : -1]
@@ -90,7 +92,7 @@ SAME(VR_U_BINARY, 36);
 SAME(VR_U_ENUMERATION, 38);
 SAME(VR_U_VEC, 40);
 SAME(VR_U_IVEC, 47);
-SAME(N_VARIABLES, 51);
+SAME(N_VARIABLES, 52);
 
 #define INPUT(name, type, variability, slot, start, start_string, description)                                 \
     {name, type, C_INPUT, variability, I_DEFAULT, slot, start, start_string, -INFINITY, INFINITY, NULL,        \
@@ -143,6 +145,7 @@ static const Variable VARIABLES[N_VARIABLES] = {
     OUTPUT("y_ivec", T_INT32, V_DISCRETE, I_Y_IVEC, "u_ivec + p_int32, saturated", "47"),
     OUTPUT("wave", T_FLOAT64, V_CONTINUOUS, R_WAVE, "(sin t, cos 3t, t^3)", ""),
     OUTPUT("ticks", T_INT32, V_DISCRETE, I_TICKS, "(k, -2 k), k = round(10 t)", ""),
+    OUTPUT("stamp", T_BINARY, V_DISCRETE, X_STAMP, "k % 3 + 1 bytes k % 256, then a zero, k = round(10 t)", ""),
 };
 
 static const int DIMENSIONS[N_VARIABLES][MAX_DIMENSIONS] = {
@@ -220,6 +223,10 @@ static ModelStatus outputs(Instance *inst, double t, const double *x) {
     r[R_WAVE + 2] = t * t * t;
     n[I_TICKS] = (int)floor(10.0 * t + 0.5);
     n[I_TICKS + 1] = -2 * n[I_TICKS];
+    size = (size_t)(n[I_TICKS] % 3 + 1);
+    memset(reversed, n[I_TICKS] & 0xff, size);
+    reversed[size] = 0;
+    model_set_binary(inst, X_STAMP, reversed, size + 1);
     return t >= r[R_STOP_AT] ? MODEL_TERMINATE : MODEL_OK;
 }
 

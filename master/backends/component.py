@@ -6,7 +6,7 @@ Times are in seconds.
 from __future__ import annotations
 
 from master.fmu import Fmu
-from master.scenario.fmuinfo import TEXT, element_names, lookup
+from master.scenario.fmuinfo import TEXTS, element_names, lookup
 from master.scenario.model import Component, Scenario
 from master.schedule import KINDS, Plan, value_kind
 
@@ -50,7 +50,7 @@ def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
     (schedule.KINDS: Integer, Boolean, then the FMI 3 ones read through their own calls;
     kernel.h's order). An FMI 3 array is a column per element (y[1], y[2], ...), all of them:
     one call reads it whole; a recorded array of any kind is read into the history too. String
-    outputs have a ring of their own (`string_output_names`)."""
+    and Binary outputs have a ring of their own (`string_output_names`)."""
     out: list[str] = []
     recorded = [lookup(variables, v)[0] for c, v in plan.record if c == name]
     for kind in KINDS:
@@ -64,12 +64,13 @@ def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
 
 
 def string_output_names(plan: Plan, name: str) -> list[str]:
-    """The coupled String outputs of `name`, read into its string ring (kernel.h) at each
+    """The coupled String then Binary outputs of `name`, read into its text ring (kernel.h) at each
     communication point whose samples are used, in link order."""
     out: list[str] = []
-    for lk in plan.links:
-        if lk.source == name and lk.kind == TEXT:
-            out.extend(o for o in lk.outputs if o not in out)
+    for kind in TEXTS:
+        for lk in plan.links:
+            if lk.source == name and lk.kind == kind:
+                out.extend(o for o in lk.outputs if o not in out)
     return out
 
 

@@ -42,7 +42,7 @@ class InProcessBackend:
         assert self.compiled is not None
         initialize(self.compiled, self.fmus)
         with signals_deferred():
-            recorder.write(self.compiled.take_rows())
+            recorder.write(*self.compiled.take_rows())
 
     def pace(self, factor: float) -> None:
         """Pace the following macro steps to the wall clock: simulated time runs `factor` times as fast."""
@@ -58,7 +58,7 @@ class InProcessBackend:
             return cp.run(n_from, n_to, budget)[1]
         finally:
             with signals_deferred():
-                recorder.write(cp.take_rows())
+                recorder.write(*cp.take_rows())
 
     @property
     def position(self) -> int:

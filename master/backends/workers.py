@@ -42,8 +42,10 @@ from master.runtime.tables import (
     layout,
     pacing_stats,
     ring_rows,
+    ring_texts,
     shared_stop,
     shared_view,
+    text_columns,
 )
 from master.schedule import Plan
 
@@ -223,7 +225,7 @@ class WorkerBackend:
             )
             for pc in self.plan.components
         }
-        row_bytes = 8 * len(self.plan.columns)
+        row_bytes = 8 * len(self.plan.columns) + native.STRING_SLOT * len(text_columns(self.plan))
         self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER
@@ -338,7 +340,8 @@ class WorkerBackend:
         done = min(counter(self.memory, "rows_written", w).value for w in range(len(self.groups)))
         if done > self.drained:
             with signals_deferred():
-                recorder.write(ring_rows(self.memory["rows"], self.drained, done))
+                rows = ring_rows(self.memory["rows"], self.drained, done)
+                recorder.write(rows, ring_texts(self.plan, self.memory["texts"], self.drained, done))
                 self.drained = done
             self.lib.mk_publish(counter(self.memory, "rows_drained"), done)
         done = min(counter(self.memory, "published", i).value for i in range(len(self.names)))

@@ -38,6 +38,8 @@ typedef int fmi2_get_string(void *, const uint32_t *, size_t, const char **);
 typedef int fmi2_set_string(void *, const uint32_t *, size_t, const char *const *);
 typedef int fmi3_get_string(void *, const uint32_t *, size_t, const char **, size_t);
 typedef int fmi3_set_string(void *, const uint32_t *, size_t, const char *const *, size_t);
+typedef int fmi3_get_binary(void *, const uint32_t *, size_t, size_t *, const uint8_t **, size_t);
+typedef int fmi3_set_binary(void *, const uint32_t *, size_t, const size_t *, const uint8_t *const *, size_t);
 #define FMI2_DISCARD 2
 #define FMI2_TERMINATED 3 /* fmi2StatusKind fmi2Terminated */
 
@@ -61,6 +63,7 @@ void mk_constants(int64_t *values) {
     values[1] = MK_COUPLING_ERROR;
     values[2] = MK_ERROR_FIELDS;
     values[3] = MK_STRING_SLOT;
+    values[4] = MK_TEXT_MAX;
 }
 
 static int64_t now_ns(void) {
@@ -414,44 +417,98 @@ static int get_outputs(const mk_component *c, double *row, int32_t *call, int32_
     return st;
 }
 
-/* -- String connections (kernel.h) ------------------------------------------------------------- */
+/* -- String and Binary connections (kernel.h) ------------------------------------------------- */
 
-/* Slot i of sample `sample` in a component's string ring. */
+/* Slot i of sample `sample` in a component's text ring. */
 static char *string_slot(const mk_component *c, char *ring, int64_t sample, int32_t i) {
-    return ring + ((size_t)(sample % c->cap) * (size_t)c->n_out_string + (size_t)i) * MK_STRING_SLOT;
+    const size_t n = (size_t)(c->n_out_string + c->n_out_binary);
+    return ring + ((size_t)(sample % c->cap) * n + (size_t)i) * MK_STRING_SLOT;
 }
 
-/* A String of at most MK_STRING_SLOT - 1 bytes, terminating zero included. */
-static void copy_string(char *to, const char *from) { memcpy(to, from, strlen(from) + 1); }
-
-/* The String inputs from values[i * MK_STRING_SLOT] (i < n) through fmi2SetString / fmi3SetString. */
-static int set_strings(const mk_component *c, const uint32_t *vrs, const char *values, int32_t n) {
-    const char *v[n];
-    for (int32_t i = 0; i < n; i++) v[i] = values + (size_t)i * MK_STRING_SLOT;
-    if (c->fmi == 3) return ((fmi3_set_string *)c->set_string)(c->instance, vrs, (size_t)n, v, (size_t)n);
-    return ((fmi2_set_string *)c->set_string)(c->instance, vrs, (size_t)n, v);
+static uint64_t text_length(const char *slot) {
+    uint64_t n;
+    memcpy(&n, slot, sizeof n);
+    return n;
 }
 
-/* Read component ci's String outputs into sample `sample` of `ring`: MK_DONE, MK_FMI_ERROR (the
- * call failed in the step from point j) or MK_TOO_LONG (a String that does not fit its slot). */
+/* A value of n <= MK_TEXT_MAX bytes into a slot: its length, its bytes, a zero. */
+static void put_text(char *slot, const void *data, uint64_t n) {
+    memcpy(slot, &n, sizeof n);
+    if (n) memcpy(slot + 8, data, (size_t)n);
+    slot[8 + n] = 0;
+}
+
+static void copy_text(char *to, const char *from) { memcpy(to, from, 8 + (size_t)text_length(from) + 1); }
+
+/* The text inputs vrs[0..n_string + n_binary) from values[i * MK_STRING_SLOT]: n_string Strings
+ * through fmi2SetString / fmi3SetString, then n_binary Binaries through fmi3SetBinary; *call says
+ * which call failed. */
+static int set_texts(const mk_component *c, const uint32_t *vrs, const char *values, int32_t n_string,
+                     int32_t n_binary, int32_t *call) {
+    int st = STATUS_OK;
+    if (n_string) {
+        const char *v[n_string];
+        for (int32_t i = 0; i < n_string; i++) v[i] = values + (size_t)i * MK_STRING_SLOT + 8;
+        st = c->fmi == 3 ? ((fmi3_set_string *)c->set_string)(c->instance, vrs, (size_t)n_string, v, (size_t)n_string)
+                         : ((fmi2_set_string *)c->set_string)(c->instance, vrs, (size_t)n_string, v);
+        if (st > STATUS_OK) return *call = MK_CALL_SET_STRING, st;
+    }
+    if (n_binary) {
+        const uint8_t *v[n_binary];
+        size_t size[n_binary];
+        for (int32_t i = 0; i < n_binary; i++) {
+            const char *slot = values + (size_t)(n_string + i) * MK_STRING_SLOT;
+            v[i] = (const uint8_t *)slot + 8;
+            size[i] = (size_t)text_length(slot);
+        }
+        st = ((fmi3_set_binary *)c->set_binary)(c->instance, vrs + n_string, (size_t)n_binary, size, v, (size_t)n_binary);
+        if (st > STATUS_OK) return *call = MK_CALL_SET_BINARY, st;
+    }
+    return st;
+}
+
+/* n values of one text kind (MK_RECORD_STRING or MK_RECORD_BINARY) read into slots[i *
+ * MK_STRING_SLOT]: the FMI status, or -1 - i where value i is longer than MK_TEXT_MAX bytes
+ * (*length: its length). */
+static int get_texts(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t n, char *slots,
+                     uint64_t *length) {
+    const void *v[n];
+    size_t size[n];
+    int st;
+    for (int32_t i = 0; i < n; i++) v[i] = NULL, size[i] = 0;
+    if (kind == MK_RECORD_BINARY)
+        st = ((fmi3_get_binary *)c->get_binary)(c->instance, vrs, (size_t)n, size, (const uint8_t **)v, (size_t)n);
+    else
+        st = c->fmi == 3 ? ((fmi3_get_string *)c->get_string)(c->instance, vrs, (size_t)n, (const char **)v, (size_t)n)
+                         : ((fmi2_get_string *)c->get_string)(c->instance, vrs, (size_t)n, (const char **)v);
+    if (st > STATUS_OK) return st;
+    for (int32_t i = 0; i < n; i++) {
+        uint64_t bytes = kind == MK_RECORD_BINARY ? (uint64_t)size[i] : (v[i] ? strlen(v[i]) : 0);
+        if (bytes > MK_TEXT_MAX) return *length = bytes, -1 - i;
+        put_text(slots + (size_t)i * MK_STRING_SLOT, v[i] ? v[i] : "", bytes);
+    }
+    return st;
+}
+
+/* Read component ci's text outputs into sample `sample` of `ring`: MK_DONE, MK_FMI_ERROR (the call
+ * failed in the step from point j) or MK_TOO_LONG (a value that does not fit its slot). */
 static int32_t read_strings(mk_kernel *k, int32_t ci, char *ring, int64_t j, int64_t sample) {
     const mk_component *c = &k->components[ci];
-    const int32_t n = c->n_out_string;
-    const char *v[n];
-    for (int32_t i = 0; i < n; i++) v[i] = NULL;
-    int st = c->fmi == 3 ? ((fmi3_get_string *)c->get_string)(c->instance, c->out_string_vrs, (size_t)n, v, (size_t)n)
-                         : ((fmi2_get_string *)c->get_string)(c->instance, c->out_string_vrs, (size_t)n, v);
-    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_STRING, st, j);
-    for (int32_t i = 0; i < n; i++) {
-        const char *text = v[i] ? v[i] : "";
-        size_t length = strlen(text);
-        if (length >= MK_STRING_SLOT) {
+    const int32_t ns = c->n_out_string, nb = c->n_out_binary;
+    uint64_t length = 0;
+    for (int32_t part = 0; part < 2; part++) {
+        const int32_t n = part ? nb : ns, first = part ? ns : 0;
+        if (!n) continue;
+        int st = get_texts(c, part ? MK_RECORD_BINARY : MK_RECORD_STRING, c->out_string_vrs + first, n,
+                           string_slot(c, ring, sample, first), &length);
+        if (st < 0) {
             fail(k, MK_TOO_LONG, ci, -1, 0, sample);
-            k->error.variable = i;
-            k->error.integer = (uint64_t)length;
+            k->error.variable = first - 1 - st;
+            k->error.integer = length;
             return MK_TOO_LONG;
         }
-        memcpy(string_slot(c, ring, sample, i), text, length + 1);
+        if (st > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, part ? MK_CALL_GET_BINARY : MK_CALL_GET_STRING, st, j);
     }
     return MK_DONE;
 }
@@ -496,9 +553,29 @@ static int do_step(const mk_component *c, double t, bool final, int *terminate) 
     return st;
 }
 
-/* One recorded value of any kind but MK_REAL_SAMPLE, as a double (integers beyond 2^53 rounded). */
-static int get_scalar(const mk_component *c, int32_t kind, uint32_t vr, double *out) {
+/* A recorded value into its row's 8 bytes as `how` says (kernel.h: MK_STORE_*). */
+static void store(double *to, int32_t how, double value) {
+    if (how == MK_STORE_INT64) {
+        int64_t v = (int64_t)value;
+        memcpy(to, &v, sizeof v);
+    } else if (how == MK_STORE_UINT64) {
+        uint64_t v = (uint64_t)value;
+        memcpy(to, &v, sizeof v);
+    } else
+        *to = value;
+}
+
+/* One recorded value of any kind but MK_REAL_SAMPLE into its row's 8 bytes as `how` says: an Int64
+ * or UInt64 stored as such is exact whatever its magnitude. */
+static int get_scalar(const mk_component *c, int32_t kind, int32_t how, uint32_t vr, double *out) {
     int status;
+    if (how != MK_STORE_DOUBLE) { /* the bits of an int64 or uint64, read through its own call */
+        typedef int get_t(void *, const uint32_t *, size_t, void *, size_t);
+        uint64_t v = 0;
+        status = ((get_t *)c->get_typed[kind])(c->instance, &vr, 1, &v, 1);
+        memcpy(out, &v, sizeof v);
+        return status;
+    }
     switch (kind) {
     case MK_INTEGER: {
         int32_t v = 0;
@@ -618,8 +695,9 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
             }
         }
     }
-    /* String links: the held sample of each step, copied (the source may overwrite its slot once
-     * this component has taken its inputs, before the step sets them) */
+    /* String and Binary links: the held sample of each step, copied (the source may overwrite its
+     * slot once this component has taken its inputs, before the step sets them) */
+    const size_t n_text_in = (size_t)(c->n_in_string + c->n_in_binary);
     for (int32_t l = 0; l < c->n_string_links; l++) {
         const mk_link *lk = &c->string_links[l];
         const mk_component *src = &k->components[lk->source];
@@ -629,9 +707,9 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
         const int64_t *off = lk->offsets + (size_t)t * kc; /* one term */
         const int64_t base = n * lk->k_source;
         for (int32_t m = 0; m < kc; m++) {
-            char *to = c->string_u + ((size_t)m * c->n_in_string + lk->slot0) * MK_STRING_SLOT;
+            char *to = c->string_u + ((size_t)m * n_text_in + lk->slot0) * MK_STRING_SLOT;
             for (int32_t i = 0; i < lk->n_cols; i++)
-                copy_string(to + (size_t)i * MK_STRING_SLOT, string_slot(src, ring, base + off[m], lk->columns[i]));
+                copy_text(to + (size_t)i * MK_STRING_SLOT, string_slot(src, ring, base + off[m], lk->columns[i]));
         }
     }
     if (c->n_stimuli) {
@@ -736,10 +814,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int64_t t0 = now_ns();
         int32_t call = 0;
         if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
-        if (c->n_in_string &&
-            (st = set_strings(c, c->in_string_vrs, c->string_u + (size_t)m * c->n_in_string * MK_STRING_SLOT,
-                              c->n_in_string)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_STRING, st, j);
+        const int32_t n_text_in = c->n_in_string + c->n_in_binary;
+        if (n_text_in && (st = set_texts(c, c->in_string_vrs, c->string_u + (size_t)m * n_text_in * MK_STRING_SLOT,
+                                         c->n_in_string, c->n_in_binary, &call)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, call, st, j);
         if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
         if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
@@ -752,7 +830,8 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
-        if (c->n_out_string && c->reads[m] && (st = read_strings(k, ci, c->strings, j, j + 1)) != MK_DONE) return st;
+        if (c->n_out_string + c->n_out_binary && c->reads[m] && (st = read_strings(k, ci, c->strings, j, j + 1)) != MK_DONE)
+            return st;
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         c->steps++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
@@ -777,7 +856,7 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         mk_counter *ready = c->link_final[l] ? &sh->published[lk->source] : &sh->stepped[lk->source];
         if (wait_for(k, ready, n + 1)) return aborted(k);
     }
-    for (int32_t l = 0; sh && l < c->n_string_links; l++) /* String outputs are never read again */
+    for (int32_t l = 0; sh && l < c->n_string_links; l++) /* text outputs are never read again */
         if (wait_for(k, &sh->stepped[c->string_links[l].source], n + 1)) return aborted(k);
     const int64_t j = (n + 1) * c->ratio;
     int64_t t0 = now_ns();
@@ -801,10 +880,10 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const mk_component *src = &k->components[lk->source];
         char *to = c->string_u; /* step 0's values as scratch: the next macro step fills them anew */
         for (int32_t i = 0; i < lk->n_cols; i++)
-            copy_string(to + (size_t)i * MK_STRING_SLOT,
-                        string_slot(src, src->strings, (n + 1) * lk->k_source, lk->columns[i]));
-        call = MK_CALL_SET_STRING;
-        st = set_strings(c, c->in_string_vrs + lk->slot0, to, lk->n_cols);
+            copy_text(to + (size_t)i * MK_STRING_SLOT,
+                      string_slot(src, src->strings, (n + 1) * lk->k_source, lk->columns[i]));
+        const bool strings = lk->slot0 < c->n_in_string; /* a link carries one kind */
+        st = set_texts(c, c->in_string_vrs + lk->slot0, to, strings ? lk->n_cols : 0, strings ? 0 : lk->n_cols, &call);
     }
     double *row = c->hist + (j % c->cap) * c->n_out;
     const int32_t n64 = c->n_resample - c->n_resample_float32, nvr64 = c->n_resample_vrs - c->n_resample_float32_vrs;
@@ -870,8 +949,9 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
             mk_component *c = &k->components[i];
             if (!c->local) continue;
             memcpy(c->hist_previous, c->hist, sizeof(double) * (size_t)c->cap * (size_t)c->n_out);
-            if (c->n_out_string)
-                memcpy(c->strings_previous, c->strings, (size_t)c->cap * (size_t)c->n_out_string * MK_STRING_SLOT);
+            if (c->n_out_string + c->n_out_binary)
+                memcpy(c->strings_previous, c->strings,
+                       (size_t)c->cap * (size_t)(c->n_out_string + c->n_out_binary) * MK_STRING_SLOT);
         }
         if ((code = barrier(k))) break;
         for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
@@ -923,12 +1003,13 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
         const mk_component *src = &k->components[lk->source];
         char *to = c->string_u + (size_t)lk->slot0 * MK_STRING_SLOT; /* step 0's values as scratch */
         for (int32_t i = 0; i < lk->n_cols; i++)
-            copy_string(to + (size_t)i * MK_STRING_SLOT, string_slot(src, src->strings, 0, lk->columns[i]));
+            copy_text(to + (size_t)i * MK_STRING_SLOT, string_slot(src, src->strings, 0, lk->columns[i]));
     }
-    if (c->n_in_string && (st = set_strings(c, c->in_string_vrs, c->string_u, c->n_in_string)) > STATUS_OK)
-        return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_STRING, st, 0);
+    if (c->n_in_string + c->n_in_binary &&
+        (st = set_texts(c, c->in_string_vrs, c->string_u, c->n_in_string, c->n_in_binary, &call)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, call, st, 0);
     if (c->n_out && (st = read_outputs(k, ci, c->hist, 0, 0)) != MK_DONE) return st;
-    if (c->n_out_string && (st = read_strings(k, ci, c->strings, 0, 0)) != MK_DONE) return st;
+    if (c->n_out_string + c->n_out_binary && (st = read_strings(k, ci, c->strings, 0, 0)) != MK_DONE) return st;
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     return MK_DONE;
 }
@@ -952,14 +1033,15 @@ static double coupling_error(const mk_component *c, uint32_t index) {
 int32_t mk_record_row(mk_kernel *k, int64_t n) {
     int32_t code = ring_room(k);
     if (code) return code;
-    double *row = k->rows + (size_t)(k->rows_total % k->row_capacity) * (size_t)k->n_columns;
+    const size_t slot = (size_t)(k->rows_total % k->row_capacity);
+    double *row = k->rows + slot * (size_t)k->n_columns;
     if (!k->shared || k->shared->worker == 0)
         row[0] = (double)(k->macro_num0 + (n + 1) * k->macro_dnum) / (double)k->macro_den;
     for (int32_t r = 0; r < k->n_records; r++) {
         const mk_record *rec = &k->records[r];
         mk_component *c = &k->components[rec->component];
         if (rec->kind == MK_REAL_SAMPLE) {
-            row[rec->column] = c->hist[(((n + 1) * c->ratio) % c->cap) * c->n_out + rec->index];
+            store(row + rec->column, rec->store, c->hist[(((n + 1) * c->ratio) % c->cap) * c->n_out + rec->index]);
             continue;
         }
         if (rec->kind == MK_COUPLING_ERROR) {
@@ -967,17 +1049,27 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
             continue;
         }
         int64_t t0 = now_ns();
+        uint64_t length = 0;
+        int st;
         mark_busy(k, rec->component);
-        int st = get_scalar(c, rec->kind, rec->index, &row[rec->column]);
+        if (rec->kind == MK_RECORD_STRING || rec->kind == MK_RECORD_BINARY) {
+            row[rec->column] = 0.0; /* Python's to fill: the value's place in the results */
+            char *to = k->texts + (slot * (size_t)k->n_texts + (size_t)rec->text) * MK_STRING_SLOT;
+            st = get_texts(c, rec->kind, &rec->index, 1, to, &length);
+        } else
+            st = get_scalar(c, rec->kind, rec->store, rec->index, &row[rec->column]);
         mark_idle(k);
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
-        if (st > STATUS_OK) {
-            int32_t call = rec->kind == MK_INTEGER   ? MK_CALL_GET_INTEGER
-                           : rec->kind == MK_BOOLEAN ? MK_CALL_GET_BOOLEAN
-                                                     : TYPED_CALL(MK_CALL_GET_TYPED, rec->kind);
-            fail(k, MK_FMI_ERROR, rec->component, call, st, (n + 1) * c->ratio);
+        if (st > STATUS_OK || st < 0) {
+            int32_t call = rec->kind == MK_INTEGER         ? MK_CALL_GET_INTEGER
+                           : rec->kind == MK_BOOLEAN       ? MK_CALL_GET_BOOLEAN
+                           : rec->kind == MK_RECORD_STRING ? MK_CALL_GET_STRING
+                           : rec->kind == MK_RECORD_BINARY ? MK_CALL_GET_BINARY
+                                                           : TYPED_CALL(MK_CALL_GET_TYPED, rec->kind);
+            fail(k, st < 0 ? MK_TOO_LONG : MK_FMI_ERROR, rec->component, call, st < 0 ? 0 : st, (n + 1) * c->ratio);
             k->error.variable = r;
-            return MK_FMI_ERROR;
+            k->error.integer = length;
+            return k->error.code;
         }
     }
     k->rows_total++;

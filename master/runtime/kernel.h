@@ -20,15 +20,20 @@
  * (FMI 2 Integer and Enumeration, FMI 3 Int32), Boolean, and the other FMI 3 numeric types, set and
  * read through the calls of their own type (mk_component: set_typed, get_typed; an FMI 3
  * Enumeration is an Int64). Values travel as doubles: exact for Float32 and for integers up to 2^53
- * in magnitude. Real and Float32 signals are extrapolated, the others held (order 0). Strings
- * (coupled, never recorded) travel as text in string rings of their own, held too (MK_STRING_SLOT). */
+ * in magnitude. Real and Float32 signals are extrapolated, the others held (order 0). Strings and
+ * FMI 3 Binaries travel as bytes in text rings of their own, held too (MK_STRING_SLOT). */
 enum {
     MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2, MK_FLOAT32, MK_INT8, MK_UINT8, MK_INT16, MK_UINT16,
     MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
 };
 
-/* A recorded column that is no FMU value: a link's latest coupling error (mk_record). */
-enum { MK_COUPLING_ERROR = MK_KINDS };
+/* Recorded columns of other kinds (mk_record): a link's latest coupling error, a String and a Binary
+ * (read at the row into the results' text ring). */
+enum { MK_COUPLING_ERROR = MK_KINDS, MK_RECORD_STRING, MK_RECORD_BINARY };
+
+/* How a recorded value lies in its row's 8 bytes (mk_record.store): a double, or the bits of an
+ * int64 / uint64 (an FMI 3 Int64 or UInt64, exact whatever its magnitude). */
+enum { MK_STORE_DOUBLE = 0, MK_STORE_INT64 = 1, MK_STORE_UINT64 = 2 };
 
 /* What mk_run returned. */
 enum {
@@ -42,20 +47,23 @@ enum {
     MK_STOPPED = 7,    /* an FMU ended the simulation (FMI 2 fmi2Terminated, FMI 3 terminateSimulation) */
     MK_INEXACT = 8,    /* a 64-bit integer output in a history (a coupled one) is beyond 2^53 in
                           magnitude: a double cannot carry it exactly */
-    MK_TOO_LONG = 9,   /* a coupled String output is longer than its slot (MK_STRING_SLOT - 1 bytes) */
+    MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
 };
 
-/* String connections: a coupled String output is read after each step whose samples are used into
- * the component's string ring, a slot of MK_STRING_SLOT bytes (the terminating zero included) per
- * sample and output, same ring index as its numeric samples; consumers hold it (order 0). */
-#define MK_STRING_SLOT 1024
+/* String and Binary connections: a coupled String or Binary output is read after each step whose
+ * samples are used into the component's text ring, a slot of MK_STRING_SLOT bytes per sample and
+ * output, same ring index as its numeric samples; consumers hold it (order 0). A slot holds the
+ * value's length in bytes (a uint64), then its bytes, then a zero (a String is a C string there):
+ * at most MK_TEXT_MAX bytes. Recorded Strings and Binaries use slots of the same form. */
+#define MK_TEXT_MAX 1023
+#define MK_STRING_SLOT (8 + MK_TEXT_MAX + 1)
 
 /* Which FMI call failed (mk_error.call). */
 enum {
     MK_CALL_SET_REAL, MK_CALL_SET_DERIVATIVES, MK_CALL_DO_STEP, MK_CALL_GET_REAL,
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
     MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED, MK_CALL_SET_TYPED, MK_CALL_GET_STRING,
-    MK_CALL_SET_STRING,
+    MK_CALL_SET_STRING, MK_CALL_GET_BINARY, MK_CALL_SET_BINARY,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -198,23 +206,25 @@ typedef struct {
     int32_t n_consumers; /* components reading this history (they hold its ring back) */
     const int32_t *consumers;
     int32_t local;       /* stepped by this process */
-    /* String connections (none: every count 0, nothing is called). Outputs: n_out_string coupled
-     * String outputs, read with get_string (fmi2GetString / fmi3GetString) wherever reads[m], into
-     * strings[sample % cap][i][MK_STRING_SLOT] (hist_previous's twin: strings_previous). Inputs:
-     * n_in_string, set with set_string before each step from string_u[m][i][MK_STRING_SLOT], which
-     * fill_inputs copies from the sources' rings: string_links are mk_links of one term (held)
-     * whose columns index the source's String outputs and slot0 the String inputs (the numeric
-     * fields weights, zero, scale, predict: unused). */
-    mk_function get_string, set_string;
-    int32_t n_out_string;
+    /* String and Binary connections (none: every count 0, nothing is called). Outputs: n_out_string
+     * coupled String outputs then n_out_binary Binary ones (out_string_vrs: theirs), read with
+     * get_string (fmi2GetString / fmi3GetString) and get_binary (fmi3GetBinary) wherever reads[m],
+     * into strings[sample % cap][i][MK_STRING_SLOT] (hist_previous's twin: strings_previous).
+     * Inputs: n_in_string String then n_in_binary Binary ones (in_string_vrs), set with set_string
+     * and set_binary before each step from string_u[m][i][MK_STRING_SLOT], which fill_inputs copies
+     * from the sources' rings: string_links are mk_links of one term (held) whose columns index the
+     * source's text outputs and slot0 the text inputs, a link of one kind (the numeric fields
+     * weights, zero, scale, predict: unused). */
+    mk_function get_string, set_string, get_binary, set_binary;
+    int32_t n_out_string, n_out_binary;
     const uint32_t *out_string_vrs;
-    char *strings;          /* [cap][n_out_string][MK_STRING_SLOT] */
+    char *strings;          /* [cap][n_out_string + n_out_binary][MK_STRING_SLOT] */
     char *strings_previous; /* start-up: the previous sweep's */
-    int32_t n_in_string;
+    int32_t n_in_string, n_in_binary;
     const uint32_t *in_string_vrs;
     int32_t n_string_links;
     const mk_link *string_links;
-    char *string_u; /* [ratio][n_in_string][MK_STRING_SLOT] */
+    char *string_u; /* [ratio][n_in_string + n_in_binary][MK_STRING_SLOT] */
     /* written by the kernel */
     void *saved_state;
     int64_t steps;
@@ -222,10 +232,11 @@ typedef struct {
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the
- * call of its kind, or the latest coupling error of one of the component's links' columns (the row
+ * call of its kind, the latest coupling error of one of the component's links' columns (the row
  * after macro step n holds the error found at the start of macro step n: of the prediction of the
  * source's sample at the macro step's start, made in macro step n - 1, one macro step before the
- * row's time). */
+ * row's time), or a String or Binary read at the row into slot `text` of the row's text ring (its
+ * place in the row is Python's to fill). */
 typedef struct {
     int32_t column; /* in the row (0 is time) */
     int32_t component;
@@ -233,6 +244,8 @@ typedef struct {
                        (the component's links' columns counted in link order); any other kind:
                        value reference */
     uint32_t index;
+    int32_t store;  /* MK_STORE_*: how the value lies in the row */
+    int32_t text;   /* MK_RECORD_STRING, MK_RECORD_BINARY: the text ring's column */
 } mk_record;
 
 typedef struct {
@@ -242,11 +255,12 @@ typedef struct {
     int32_t status;
     int64_t point;    /* communication point j at the start of the failing step */
     int32_t variable; /* output index (MK_NOT_FINITE, MK_DIVERGED, MK_INEXACT; MK_TOO_LONG: of the
-                         String outputs) or record index */
+                         text outputs, or with call MK_CALL_GET_STRING / _BINARY a record index) or
+                         record index */
     int32_t kind;     /* the value kind of a failing MK_CALL_SET_TYPED / MK_CALL_GET_TYPED */
     double value;
     uint64_t integer; /* MK_INEXACT: the integer read (an Int64 as its two's complement bits);
-                         MK_TOO_LONG: the String's length in bytes */
+                         MK_TOO_LONG: the String's or Binary's length in bytes */
 } mk_error;
 
 /* Per-frame lateness of real-time pacing: a histogram in microseconds and the extremes. */
@@ -295,8 +309,11 @@ typedef struct {
     int32_t n_columns;
     int32_t n_records;
     const mk_record *records; /* the local components' columns */
-    /* results ring [row_capacity][n_columns]: row r in slot r % row_capacity */
+    /* results ring [row_capacity][n_columns]: row r in slot r % row_capacity; recorded Strings and
+     * Binaries in texts[row_capacity][n_texts][MK_STRING_SLOT], same slot */
     double *rows;
+    char *texts;
+    int32_t n_texts;
     int64_t row_capacity;
     int64_t rows_total;   /* rows begun by this process */
     int64_t rows_drained; /* one process: rows Python has taken out (several: see shared) */
@@ -314,7 +331,7 @@ typedef struct {
 /* Sizes of the structures, for the ctypes mirror to check itself against. */
 void mk_layout(int64_t *sizes);
 /* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS,
- * MK_STRING_SLOT. */
+ * MK_STRING_SLOT, MK_TEXT_MAX. */
 void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */

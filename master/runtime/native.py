@@ -44,21 +44,29 @@ CALLS = (
     "set_typed",
     "get_string",
     "set_string",
+    "get_binary",
+    "set_binary",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
 # FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
 TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
 KINDS = 11
-COUPLING_ERROR = KINDS  # a recorded column: a link column's latest coupling error (kernel.h mk_record)
+# recorded columns of other kinds (kernel.h mk_record): a link column's latest coupling error, a
+# String and a Binary (read at the row into the text ring)
+COUPLING_ERROR, RECORD_STRING, RECORD_BINARY = KINDS, KINDS + 1, KINDS + 2
+# how a recorded value lies in its row's 8 bytes (kernel.h MK_STORE_*)
+STORE = {"float64": 0, "int64": 1, "uint64": 2}
 ERROR_FIELDS = 6  # mk_link.error per column: max, sum of squares, count, min, max, latest
 LATE_BINS = 10000
-STRING_SLOT = 1024  # bytes of one String sample in a string ring, the terminating zero included
+TEXT_MAX = 1023  # bytes of a String or Binary a connection carries and a row records
+STRING_SLOT = 8 + TEXT_MAX + 1  # a text ring's slot: the length (uint64), the bytes, a zero
 CONSTANTS = {
     "MK_KINDS": KINDS,
     "MK_COUPLING_ERROR": COUPLING_ERROR,
     "MK_ERROR_FIELDS": ERROR_FIELDS,
     "MK_STRING_SLOT": STRING_SLOT,
+    "MK_TEXT_MAX": TEXT_MAX,
 }
 
 _p = C.c_void_p
@@ -201,11 +209,15 @@ class Component(C.Structure):
         ("local", _i32),
         ("get_string", _p),
         ("set_string", _p),
+        ("get_binary", _p),
+        ("set_binary", _p),
         ("n_out_string", _i32),
+        ("n_out_binary", _i32),
         ("out_string_vrs", C.POINTER(_u32)),
         ("strings", C.POINTER(C.c_char)),
         ("strings_previous", C.POINTER(C.c_char)),
         ("n_in_string", _i32),
+        ("n_in_binary", _i32),
         ("in_string_vrs", C.POINTER(_u32)),
         ("n_string_links", _i32),
         ("string_links", C.POINTER(Link)),
@@ -217,7 +229,14 @@ class Component(C.Structure):
 
 
 class Record(C.Structure):
-    _fields_ = [("column", _i32), ("component", _i32), ("kind", _i32), ("index", _u32)]
+    _fields_ = [
+        ("column", _i32),
+        ("component", _i32),
+        ("kind", _i32),
+        ("index", _u32),
+        ("store", _i32),
+        ("text", _i32),
+    ]
 
 
 class Error(C.Structure):
@@ -263,6 +282,8 @@ class Kernel(C.Structure):
         ("n_records", _i32),
         ("records", C.POINTER(Record)),
         ("rows", C.POINTER(_f64)),
+        ("texts", C.POINTER(C.c_char)),
+        ("n_texts", _i32),
         ("row_capacity", _i64),
         ("rows_total", _i64),
         ("rows_drained", _i64),

@@ -26,7 +26,7 @@ from master.backends.component import (
 from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.scenario.fmuinfo import CONTINUOUS, TEXT, lookup
+from master.scenario.fmuinfo import CONTINUOUS, TEXTS, lookup, recorded_as
 from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, connection_name, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
@@ -48,8 +48,10 @@ FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used wit
     "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
     "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
     "get_boolean_status": ("fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
-    "get_string": ("fmi2GetString", "fmi3GetString"),  # String connections only
+    "get_string": ("fmi2GetString", "fmi3GetString"),  # String connections and records only
     "set_string": ("fmi2SetString", "fmi3SetString"),
+    "get_binary": (None, "fmi3GetBinary"),  # Binary connections and records only
+    "set_binary": (None, "fmi3SetBinary"),
 }
 
 
@@ -133,6 +135,8 @@ def layout(
             out[f"strings:{pc.name}"] = ((cap, len(texts), native.STRING_SLOT), "uint8")
             out[f"strings_previous:{pc.name}"] = ((cap, len(texts), native.STRING_SLOT), "uint8")
     out["rows"] = ((row_capacity, len(plan.columns)), "float64")
+    n_texts = len(text_columns(plan))  # (none: one slot, never written)
+    out["texts"] = ((row_capacity if n_texts else 1, max(n_texts, 1), native.STRING_SLOT), "uint8")
     counter, pacing = C.sizeof(native.Counter), C.sizeof(native.Pacing)
     nc, nw = len(plan.components), max(n_workers, 1)
     out["published"] = ((nc, counter), "uint8")
@@ -207,8 +211,10 @@ class CompiledPlan:
         # a connection's coupling error: recorded by the process that steps its consumer
         errors = [(i, e) for i, e in enumerate(plan.record_errors) if e[2] in fmus]
         records = (native.Record * max(len(local) + len(errors), 1))()
+        texts = text_columns(plan)
         for r, (i, comp, var) in enumerate(local):
-            records[r] = self._record(1 + i, comp, var)
+            name = f"{comp}.{var}"
+            records[r] = self._record(1 + i, comp, var, texts.index(name) if name in texts else -1)
         for r, (i, error) in enumerate(errors, len(local)):
             records[r] = self._error_record(1 + len(plan.record) + i, *error)
         k.n_records = len(local) + len(errors)
@@ -216,6 +222,8 @@ class CompiledPlan:
         k.n_columns = len(plan.columns)
         self.rows = memory["rows"]
         k.rows = _ptr(self.rows, C.c_double)
+        self.texts = memory["texts"]
+        k.texts, k.n_texts = _ptr(self.texts, C.c_char), self.texts.shape[1]
         k.row_capacity = len(self.rows)
         self.pacing = native.Pacing.from_buffer(memory["pacing"][worker])
         k.pacing = C.pointer(self.pacing)
@@ -260,8 +268,9 @@ class CompiledPlan:
         c.n_out, c.cap = len(out), len(hist)
         c.hist, c.hist_previous = _ptr(hist, C.c_double), _ptr(previous, C.c_double)
         texts = string_output_names(plan, pc.name)
-        if texts:  # its string ring (kernel.h), read by its consumers in any process
-            c.n_out_string = len(texts)
+        if texts:  # its text ring (kernel.h), read by its consumers in any process: Strings, Binaries
+            c.n_out_binary = len(set(texts) & _binaries(plan, pc.name))
+            c.n_out_string = len(texts) - c.n_out_binary
             c.strings = _ptr(self.memory[f"strings:{pc.name}"], C.c_char)
             c.strings_previous = _ptr(self.memory[f"strings_previous:{pc.name}"], C.c_char)
         consumers = sorted({self.names.index(lk.consumer) for lk in plan.links if lk.source == pc.name})
@@ -303,8 +312,8 @@ class CompiledPlan:
         for kind in KINDS:
             in_names += [i for lk in links if lk.kind == kind for i in lk.inputs]
             in_names += [s.variable for s in stimuli if kind_of(s.variable) == kind]
-        text_links = [lk for lk in links if lk.kind == TEXT]  # String connections: kernel.h
-        links = [lk for lk in links if lk.kind != TEXT]
+        text_links = [lk for lk in links if lk.kind in TEXTS]  # String and Binary connections: kernel.h
+        links = [lk for lk in links if lk.kind not in TEXTS]
         in_kinds = [kind_of(n) for n in in_names]
         in_vrs = [variable(fmu, n).vr for n in in_names]  # an array's in each of its elements' slots
         c.n_in_calls, c.in_calls = self._calls(fmu, in_names, in_kinds)
@@ -436,14 +445,20 @@ class CompiledPlan:
         """A component's String connections (kernel.h): its coupled String outputs (their ring is
         set in `_component`), its String inputs and the held links into them, of one term."""
         texts = string_output_names(self.plan, pc.name)
+        links = sorted(links, key=lambda lk: TEXTS.index(lk.kind))  # Strings first (kernel.h)
         inputs = [i for lk in links for i in lk.inputs]
         if not texts and not inputs:
             return
-        for slot, verb, used in (("get_string", "Get", texts), ("set_string", "Set", inputs)):
-            if used and getattr(c, slot) is None:  # set with the other FMI functions
-                raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi{c.fmi}{verb}String")
+        binary_in = [i for lk in links if lk.kind == "Binary" for i in lk.inputs]
+        binary_out = set(texts) & _binaries(self.plan, pc.name)
+        for kind, out, into in (("String", set(texts) - binary_out, set(inputs) - set(binary_in)),
+                                ("Binary", binary_out, binary_in)):  # fmt: skip
+            for verb, used in (("Get", out), ("Set", into)):
+                if used and getattr(c, f"{verb.lower()}_{kind.lower()}") is None:  # set with the others
+                    raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi{c.fmi}{verb}{kind}")
         c.out_string_vrs = _ptr(self._array([fmu.variables[o].vr for o in texts], np.uint32), C.c_uint32)
-        c.n_in_string = len(inputs)
+        c.n_in_binary = len(binary_in)
+        c.n_in_string = len(inputs) - len(binary_in)
         c.in_string_vrs = _ptr(self._array([fmu.variables[i].vr for i in inputs], np.uint32), C.c_uint32)
         buffer = np.zeros((pc.ratio, max(len(inputs), 1), native.STRING_SLOT), np.uint8)
         c.string_u = _ptr(self._array(buffer, np.uint8), C.c_char)
@@ -482,18 +497,27 @@ class CompiledPlan:
             index += len(lk.inputs)
         raise KeyError(f"{source}.{output} -> {consumer}.{input_}: no such connection")
 
-    def _record(self, column: int, comp: str, var: str) -> native.Record:
+    def _record(self, column: int, comp: str, var: str, text: int) -> native.Record:
+        """Column `column` of the rows: `comp`.`var` (a String or Binary: column `text` of the text
+        ring), stored as `fmuinfo.recorded_as` says."""
         i = self.names.index(comp)
-        if var in self.outs[comp]:  # a sample in the history (every element of an FMI 3 array is)
-            return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var))
         fmu = self.fmus[i]
-        v = fmu.variables[var]
+        v = variable(fmu, var)
+        store = native.STORE.get(recorded_as(v.fmi_type or v.type), 0)
+        if var in self.outs[comp]:  # a sample in the history (every element of an FMI 3 array is)
+            return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var), store)
         typed = "Int64" if v.fmi_type == "Enumeration" else v.fmi_type
+        if v.type in ("String", "Binary"):
+            kind = native.RECORD_STRING if v.type == "String" else native.RECORD_BINARY
+            for slot, name in ((f"get_{v.type.lower()}", f"fmi{2 + fmu.fmi3}Get{v.type}"),):
+                if _function(fmu, slot) is None:
+                    raise FmuError(f"{comp}: {fmu.path.name} does not export {name}")
+            return native.Record(column, i, kind, v.vr, store, text)
         if fmu.fmi3 and typed in native.TYPED:
             kind = native.TYPED[typed]
         else:
             kind = native.BOOLEAN if v.type == "Boolean" else native.INTEGER
-        return native.Record(column, i, kind, v.vr)
+        return native.Record(column, i, kind, v.vr, store)
 
     # -- running --------------------------------------------------------------------------------
     def initial_sweep(self, i: int) -> None:
@@ -556,12 +580,14 @@ class CompiledPlan:
             return None
         return stop_reason(self.plan, int(k.stopper[0]), int(k.stopper[1]))
 
-    def take_rows(self) -> np.ndarray:
-        """The rows waiting in the results ring (the only process); empties it."""
+    def take_rows(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The rows waiting in the results ring (the only process) and their recorded Strings and
+        Binaries (`ring_texts`); empties it."""
         k = self.kernel
         rows = ring_rows(self.rows, k.rows_drained, k.rows_total)
+        texts = ring_texts(self.plan, self.texts, k.rows_drained, k.rows_total)
         k.rows_drained = k.rows_total
-        return rows
+        return rows, texts
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component, as published."""
@@ -593,10 +619,16 @@ class CompiledPlan:
                 what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
         if e.code == native.TOO_LONG:
-            bad = string_output_names(self.plan, name)[e.variable]
+            recording = native.CALLS[e.call] in ("get_string", "get_binary")  # else a connection's
+            if recording:
+                bad = self.plan.record[self.record_index[e.variable]][1]
+            else:
+                bad = string_output_names(self.plan, name)[e.variable]
+            kind = variable(fmu, bad).type if fmu is not None else "String"
+            what = f"a recorded {kind} holds" if recording else f"a {kind} connection carries"
             return SimulationError(
-                f"{name}.{bad} is {int(e.integer)} bytes long at t={t}: a String connection carries at most "
-                f"{native.STRING_SLOT - 1} bytes",
+                f"{name}.{bad} is {int(e.integer)} bytes long at t={t}: {what} at most "
+                f"{native.TEXT_MAX} bytes",
                 name,
                 t,
                 bad,
@@ -622,12 +654,24 @@ class CompiledPlan:
             cause = FmuError(fmu.describe(f"fmi3{verb}{typed} failed with status {e.status}"))
         else:
             cause = fmu.call_error(call, e.status)
-        if call in ("get_integer", "get_boolean", "get_typed") and e.variable >= 0:  # recording a row
+        recording = ("get_integer", "get_boolean", "get_typed", "get_string", "get_binary")
+        if call in recording and e.variable >= 0:  # reading a value to record
             _, var = self.plan.record[self.record_index[e.variable]]
             return SimulationError(f"{cause}: reading {var}", name, math.nan, var)
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+
+def text_columns(plan: Plan) -> list[str]:
+    """The recorded String and Binary columns, in column order: the columns of the results' text
+    ring (kernel.h)."""
+    return [name for name, t in plan.column_types.items() if t in TEXTS]
+
+
+def _binaries(plan: Plan, name: str) -> set[str]:
+    """The coupled Binary outputs of component `name`."""
+    return {o for lk in plan.links if lk.source == name and lk.kind == "Binary" for o in lk.outputs}
 
 
 def variable(fmu: Fmu, name: str):
@@ -658,6 +702,12 @@ def ring_rows(rows: np.ndarray, first: int, end: int) -> np.ndarray:
     if a < b or b == 0:
         return rows[a : b or cap]
     return np.concatenate([rows[a:], rows[:b]])
+
+
+def ring_texts(plan: Plan, texts: np.ndarray, first: int, end: int) -> np.ndarray | None:
+    """The text ring's slots of rows first .. end - 1 (rows x text columns x native.STRING_SLOT
+    bytes: each a length, the bytes, a zero), None where no String or Binary is recorded."""
+    return ring_rows(texts, first, end) if text_columns(plan) else None
 
 
 def counter(memory: Memory, name: str, i: int = 0) -> native.Counter:

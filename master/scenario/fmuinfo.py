@@ -28,8 +28,8 @@ FLOATS = {"Float64", "Float32"}
 # FMI 3 Float64 are both "Real", FMI 2 Integer and FMI 3 Int32 both "Integer" (so they connect
 # across versions, as SSP compares them); every other FMI 3 numeric type is a kind of its own, set
 # and read through the calls of its own type (an FMI 3 Enumeration through those of Int64). A
-# String (FMI 2 or 3) travels as text in a string ring beside the numeric history (kernel.h:
-# MK_STRING_SLOT bytes a sample, the terminating zero included).
+# String (FMI 2 or 3) and an FMI 3 Binary travel as bytes in a text ring beside the numeric history
+# (kernel.h: MK_STRING_SLOT, at most MK_TEXT_MAX = 1023 bytes a value).
 COUPLED = {
     "Real": "Real",
     "Float64": "Real",
@@ -38,10 +38,11 @@ COUPLED = {
     "Boolean": "Boolean",
     **{t: t for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")},
     "String": "String",
+    "Binary": "Binary",
 }
 CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the other kinds are held
-TEXT = "String"  # the kind carried as text, not as a number: neither stimulated nor recorded
-CONNECTABLE = "numeric, Boolean, Enumeration and String signals; Binary ones cannot be connected"
+TEXTS = ("String", "Binary")  # the kinds carried as bytes, not as numbers: never stimulated
+CONNECTABLE = "numeric, Boolean, Enumeration, String and Binary signals"
 STIMULATED = "numeric and Enumeration"
 INT_RANGES = {
     "Int8": (-(2**7), 2**7 - 1),
@@ -59,10 +60,10 @@ FLOAT32_MAX = 3.4028234663852886e38
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     """What a connection of a variable of this type carries (`COUPLED`): "Real", "Integer",
     "Boolean", "String", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in
-    FMI 2 an Enumeration is an "Integer"); None if it cannot be connected (Binary). Kinds in
-    `CONTINUOUS` are extrapolated by the consumer's order, the others held between communication
-    points (order 0). A String connection carries at most 1023 bytes (kernel.h: MK_STRING_SLOT):
-    a longer String output stops the run."""
+    FMI 2 an Enumeration is an "Integer") and "Binary"; None if it cannot be connected (a Clock).
+    Kinds in `CONTINUOUS` are extrapolated by the consumer's order, the others held between
+    communication points (order 0). A String or Binary connection carries at most 1023 bytes
+    (kernel.h: MK_TEXT_MAX): a longer output stops the run."""
     if fmi_type == "Enumeration":
         return "Integer" if fmi_version.startswith("2") else "Int64"
     return COUPLED.get(fmi_type)
@@ -177,7 +178,7 @@ def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[in
     () for a scalar); None if it can. Numeric and Enumeration scalar inputs take steps; tables
     (piecewise linear) only continuous ones."""
     carried = coupling_kind(fmi_type, fmi_version)
-    if carried is None or carried in ("Boolean", TEXT):
+    if carried is None or carried == "Boolean" or carried in TEXTS:
         return f"stimuli drive {STIMULATED} inputs"
     if shape:
         return "stimuli drive scalar inputs, not arrays"
@@ -236,14 +237,22 @@ def _an(word: str) -> str:
     return f"an {word}" if word[0] in "AEIOU" else f"a {word}"
 
 
-RECORDED = "Real, Integer, Boolean and Enumeration values (FMI 3: every numeric type)"
+RECORDED = "Real, Integer, Boolean, Enumeration and String values (FMI 3: every numeric type and Binary)"
 
 
 def recordable(fmi_type: str, fmi_version: str) -> bool:
     """Whether the runtime can record a variable of this type: what connections carry (in FMI 3
-    every numeric type and Enumeration, each read through its own call) but Strings (the results
-    are numbers)."""
-    return coupling_kind(fmi_type, fmi_version) not in (None, TEXT)
+    every numeric type and Enumeration, each read through its own call, and Binary; Strings
+    and Binaries of at most 1023 bytes)."""
+    return coupling_kind(fmi_type, fmi_version) is not None
+
+
+def recorded_as(fmi_type: str) -> str:
+    """How the results hold a recorded variable of this type: "float64" (exact for every type but
+    64-bit integers beyond 2^53), "int64" or "uint64" (FMI 3 Int64, UInt64: exact), "String"
+    (text) or "Binary" (bytes; hex digits in a CSV file)."""
+    held = {"Int64": "int64", "UInt64": "uint64", "String": "String", "Binary": "Binary"}
+    return held.get(fmi_type, "float64")
 
 
 def type_class(fmi_type: str) -> str:

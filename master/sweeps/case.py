@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from master.recorder import number_columns
 from master.scenario.model import Scenario
 from master.sweeps.cases import Range
 from master.sweeps.metrics import Metric
@@ -78,7 +79,7 @@ def run_case(sc: Scenario, ranges: list[Range], options: CaseOptions, values: di
 def summarise(data: np.ndarray | None, metrics: tuple[Metric, ...]) -> dict:
     """Last time, final / min / max per recorded column and the metrics of one case's rows."""
     empty = data is None or len(data) == 0
-    names = [] if data is None else [n for n in data.dtype.names if n != "time"]
+    names = [] if data is None else number_columns(data)
     nan = float("nan")
     columns = {
         n: (nan, nan, nan) if empty else (float(data[n][-1]), float(np.min(data[n])), float(np.max(data[n])))

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from master.recorder import number_columns
+
 CASES = "cases.parquet"
 SERIES = "series.zarr"
 
@@ -68,7 +70,7 @@ def append_series(
 
     if not keys:
         return
-    names = [n for n in rows[0].dtype.names if n != "time"]
+    names = number_columns(rows[0])
     data = {}
     for n in names:
         block = np.full((len(keys), len(time)), math.nan)

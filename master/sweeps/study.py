@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from master.backends.driver import stop_signals
+from master.recorder import TEXT_TYPES
 from master.scenario.model import Scenario
 from master.sweeps.case import FINISHED, LOST, OK, CaseOptions, run_case
 from master.sweeps.cases import SweepError, bind, case_key, parse_vary, points, scenario_hash
@@ -77,7 +78,7 @@ def sweep(
 
     sc = _scene(api, scenario, stop_time, set_values, record, output_interval)
     plan = api.plan(sc)
-    columns = plan.columns[1:]
+    columns = [c for c in plan.columns[1:] if plan.column_types.get(c) not in TEXT_TYPES]  # numbers
     ranges = bind([parse_vary(v, method) for v in vary], sc)
     cases = points(ranges, method, samples, seed)
     checked = tuple(parse_metric(m, ["time", *columns]) for m in metrics or [])

@@ -1,0 +1,125 @@
+"""Strings and FMI 3 Binaries recorded and Binaries connected (kernel.h: text rings, MK_STRING_SLOT).
+
+Real FMUs: the FMI 3.0 FMU alltypes, whose output `stamp` is k % 3 + 1 bytes of value k % 256 and a
+zero byte, k = round(10 t) (a Binary whose length changes and that ends in a zero), and whose
+y_binary is the bytes of u_binary reversed; the text FMU (FMI 2.0 and 3.0) for Strings. Expected
+values are computed here from those rules and the documented holding of discrete signals.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from fractions import Fraction
+from math import floor
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import BACKENDS, run_everywhere, ssd
+from test_string_connections import held
+
+import master.api as api
+from master.fmubuild import fmu_path
+from master.recorder import read_csv
+from master.scenario.model import Component, Connection, Scenario, Stimulus
+
+H = Fraction(1, 10)
+STOP = Fraction(2)
+N = int(STOP / H)
+
+
+def alltypes() -> Path:
+    return fmu_path("alltypes", fmi=3)
+
+
+def stamp(t: Fraction) -> bytes:
+    k = floor(10 * t + Fraction(1, 2))
+    return bytes([k % 256]) * (k % 3 + 1) + b"\0"
+
+
+def binary_scene(coupling: str, ka: int, kb: int, record) -> Scenario:
+    comps = (Component("a", alltypes(), {}, ka), Component("b", alltypes(), {}, kb))
+    order = ("a", "b") if coupling == "gauss-seidel" else ()
+    link = Connection("a", "stamp", "b", "u_binary")
+    return Scenario(Path("binary.ssd"), "binary", comps, (link,), Fraction(0), STOP, H, coupling=coupling,
+                    order=order, record=tuple(record))  # fmt: skip
+
+
+@pytest.mark.parametrize("coupling, ka, kb", [("jacobi", 1, 3), ("jacobi", 3, 1), ("gauss-seidel", 3, 2)])
+def test_a_binary_is_held_along_a_connection_and_recorded_with_every_byte(coupling, ka, kb):
+    """a.stamp -> b.u_binary, multirate: b's step m of macro step n sets the held sample (the
+    first at or after the step's end that a has produced); b.y_binary, read at each row, is the
+    held input of b's last step reversed. Every backend gives the same bytes."""
+    sc = binary_scene(coupling, ka, kb, [("a", "stamp"), ("b", "y_binary")])
+    plan = api.plan(sc)
+    assert [(lk.kind, lk.order) for lk in plan.links] == [("Binary", 0)]
+    assert plan.column_types == {"a.stamp": "Binary", "b.y_binary": "Binary"}
+    d = run_everywhere(sc)
+    source = [stamp(j * H / ka) for j in range(N * ka + 1)]
+    ahead = coupling == "gauss-seidel"
+    inputs = [source[0]] + [source[held(n, kb - 1, ka, kb, ahead)] for n in range(N)]
+    assert list(d["a.stamp"]) == [stamp(n * H) for n in range(N + 1)]
+    assert list(d["b.y_binary"]) == [u[::-1] for u in inputs]
+    assert {len(u) for u in d["b.y_binary"]} == {2, 3, 4} and all(u[0] == 0 for u in d["b.y_binary"])
+
+
+def test_a_resampled_consumer_records_the_binary_of_its_input_at_the_row_time():
+    """With a Real output of b recorded, b is resampled after each macro step (kernel.h): its
+    inputs, the Binary too, are set again to a's samples at the macro step's end before the row
+    is read, so b.y_binary at t is a.stamp at t reversed: no recorded value lags its time."""
+    sc = binary_scene("jacobi", 1, 3, [("a", "stamp"), ("b", "y_binary"), ("b", "y_float64")])
+    d = run_everywhere(sc)
+    assert list(d["b.y_binary"]) == [stamp(n * H)[::-1] for n in range(N + 1)]
+
+
+def test_binary_and_string_columns_in_the_csv_file_and_back(tmp_path: Path):
+    """A Binary column is quoted hex digits, a String quoted text (quotes doubled, UTF-8);
+    `read_csv` gives the texts back, a Binary's as its hex digits."""
+    text = fmu_path("text", fmi=2)
+    comps = (Component("a", alltypes()), Component("t", text, {"suffix": 'é"', "u_string": "x,y"}))
+    sc = Scenario(Path("csv.ssd"), "csv", comps, (), Fraction(0), Fraction(1, 2), H,
+                  record=(("a", "stamp"), ("t", "y_string"), ("t", "y_length")))  # fmt: skip
+    out = tmp_path / "out.csv"
+    d = api.run(sc, backend="serial", output=out).data
+    assert d.dtype["a.stamp"].kind == "O" and d.dtype["t.y_length"] == np.float64
+    assert list(d["t.y_string"]) == ['x,yé"'] * len(d)  # repeat = 1 copy of the suffix
+    lines = out.read_text(encoding="utf-8").splitlines()
+    assert lines[0] == 'time,"a.stamp","t.y_string","t.y_length"'
+    assert lines[2] == '0.10000000000000001,"010100","x,yé""",3'
+    back = read_csv(out)
+    assert [bytes.fromhex(v) for v in back["a.stamp"]] == list(d["a.stamp"])
+    assert list(back["t.y_string"]) == list(d["t.y_string"])
+    assert np.array_equal(back["t.y_length"], d["t.y_length"]) and np.array_equal(back["time"], d["time"])
+
+
+def test_a_recorded_string_beyond_1023_bytes_stops_the_run_and_keeps_the_rows_before(tmp_path: Path):
+    """t.y_string = u_string + 6 copies of a 200-byte suffix once the stimulus (from 0.55) is set
+    (1200 bytes): the row that reads it cannot hold it; the run stops with one line, the rows
+    before are written. (t has no output read at communication points that depends on its
+    inputs, so its step-end inputs are not set after each step: the row at 0.6 reads the output of
+    the step from 0.5 with the inputs at 0.5, and the long String appears in the row at 0.7.)"""
+    text = fmu_path("text", fmi=3)
+    sc = Scenario(Path("long.ssd"), "long", (Component("t", text, {"suffix": "s" * 200}),), (), Fraction(0),
+                  Fraction(1), H, stimuli=(Stimulus("t", "repeat", "step", (0.55,), (6.0,)),),
+                  record=(("t", "y_string"),))  # fmt: skip
+    message = "t.y_string is 1200 bytes long at t=0.7: a recorded String holds at most 1023 bytes"
+    for backend in BACKENDS:
+        with pytest.raises(api.SimulationError) as failed:
+            api.run(sc, backend=backend, output=tmp_path / f"{backend}.csv")
+        assert message in str(failed.value)
+        rows = failed.value.result.data  # type: ignore[attr-defined]
+        assert list(rows["t.y_string"]) == ["s" * 200] * 7  # t = 0 ... 0.6
+        assert len(read_csv(tmp_path / f"{backend}.csv")) == 7
+
+
+def test_validate_and_run_accept_binary_connections_in_a_scenario_file(tmp_path: Path):
+    comps = {"a": "project:alltypes", "b": "project:alltypes"}
+    path = ssd(tmp_path / "b.ssd", comps, [("a", "stamp", "b", "u_binary")],
+               '<mm:Record><mm:Variable component="b" name="y_binary"/></mm:Record>', stop="0.5")  # fmt: skip
+    assert api.validate(path) == []
+    out = tmp_path / "out.csv"
+    run = subprocess.run([sys.executable, "-m", "master", "run", str(path), "-o", str(out), "-q"],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert out.read_text().splitlines()[-1] == '0.5,"000404"'  # b holds a's stamp at 0.4 (Jacobi)
