@@ -219,9 +219,9 @@ def build_plan(
     names = [c.name for c in sc.components]
     H = Fraction(sc.macro_step)
     start = Fraction(sc.start_time)
-    n_macro = (Fraction(sc.stop_time) - start) / H
-    assert n_macro.denominator == 1 and n_macro > 0, "an unchecked scenario (master.scenario.check)"
-    n_macro = int(n_macro)
+    steps = (Fraction(sc.stop_time) - start) / H
+    assert steps.denominator == 1 and steps > 0, "an unchecked scenario (master.scenario.check)"
+    n_macro = int(steps)
 
     # stepping order
     order = list(sc.order) if sc.coupling == "gauss-seidel" and sc.order else names
