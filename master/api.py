@@ -17,8 +17,9 @@ from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
 from master.fmu import FmuError, read_description, variables_of
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary
+from master.scenario import ScenarioError, check
 from master.scenario.model import Scenario, Value
-from master.schedule import Capability, Plan, PlanError, build_plan
+from master.schedule import Capability, Plan, build_plan
 
 log = logging.getLogger("master")
 
@@ -111,7 +112,9 @@ def _split_set(text: str) -> tuple[str, str]:
 
 
 def plan(sc: Scenario) -> Plan:
-    """Schedule a scenario from its FMUs' model descriptions (no FMU is loaded)."""
+    """Schedule a scenario from its FMUs' model descriptions (no FMU is loaded). A scenario that
+    breaks a rule (`master.scenario.check`: one built in Python, or a file's after overrides)
+    raises ScenarioError listing every problem, as `load` does for a file."""
     variables = {}
     caps = {}
     for c in sc.components:
@@ -128,6 +131,9 @@ def plan(sc: Scenario) -> Plan:
             bool(cs.canBeInstantiatedOnlyOncePerProcess),
             bool(cs.needsExecutionTool),
         )
+    problems = check(sc)  # the planner keeps no rule of its own
+    if problems:
+        raise ScenarioError(problems)
     return build_plan(sc, variables, caps)
 
 
@@ -347,4 +353,13 @@ def fmu_info(path: Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["run", "validate", "info", "plan", "apply_overrides", "UsageError", "SimulationError", "PlanError"]
+__all__ = [
+    "run",
+    "validate",
+    "info",
+    "plan",
+    "apply_overrides",
+    "UsageError",
+    "SimulationError",
+    "ScenarioError",
+]

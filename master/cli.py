@@ -15,13 +15,11 @@ from master import api
 from master.backends.component import SimulationError
 from master.fmu import FmuError
 from master.scenario import ScenarioError
-from master.schedule import PlanError
 
 SHOWN_FAILURES = 10  # failed cases a sweep lists by name; the table has them all
 USER_ERRORS: tuple[type[BaseException], ...] = (
     api.UsageError,
     FmuError,
-    PlanError,
     ScenarioError,
     SimulationError,
     FileNotFoundError,

@@ -30,10 +30,9 @@ import master.api as api
 from master.fmu import read_description, variables_of
 from master.fmubuild import fmu_path
 from master.recorder import read_csv
-from master.scenario import load, read, validate
+from master.scenario import ScenarioError, load, read, validate
 from master.scenario.fmuinfo import element_names, lookup, split_element
 from master.scenario.model import Component, Connection, Scenario, Stimulus
-from master.schedule import PlanError
 
 SCENES = Path(__file__).parent / "scenarios"
 ARRAYS = SCENES / "fmi3" / "arrays.ssd"  # c.wave, c.ticks -> a.u_vec, a.u_ivec; a.y_vec, a.y_ivec -> b
@@ -219,19 +218,21 @@ def test_a_shape_mismatch_is_one_problem_naming_both_ends_and_both_shapes():
         "shape mismatch: a.y_mat is Float64[2,2], b.u_vec is Float64[3]; an array drives an array of the "
         "same shape",
     ]
-    # the planner (scenarios built in Python) gives the same verdict
+    # the same verdict for scenarios built in Python (master.scenario.check)
     fmu = fmu_path("alltypes", fmi=3)
     for (out, inp), message in zip((("y_vec", "u_float64"), ("y_mat", "u_vec")), messages, strict=True):
         sc = Scenario(Path("shapes.ssd"), "shapes", (Component("a", fmu), Component("b", fmu)),
                       (Connection("a", out, "b", inp),), Fraction(0), Fraction(1), H)  # fmt: skip
-        with pytest.raises(PlanError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        with pytest.raises(ScenarioError, match=message.replace("[", r"\[").replace("]", r"\]")):
             api.plan(sc)
     sc = Scenario(Path("s.ssd"), "s", (Component("a", fmu),), (), Fraction(0), Fraction(1), H,
                   stimuli=(Stimulus("a", "u_vec", "step", (0.0,), (1.0,)),))  # fmt: skip
-    with pytest.raises(PlanError, match=r"it is Float64\[3\]; stimuli drive scalar inputs, not arrays"):
+    with pytest.raises(
+        ScenarioError, match=r"a\.u_vec is Float64\[3\]: stimuli drive scalar inputs, not arrays"
+    ):
         api.plan(sc)
     sc = dataclasses.replace(sc, stimuli=(), record=(("a", "y_vec"), ("a", "y_vec[1]")))
-    with pytest.raises(PlanError, match=r"record a\.y_vec\[1\]: recorded twice"):
+    with pytest.raises(ScenarioError, match=r"record a\.y_vec\[1\]: recorded twice"):
         api.plan(sc)
 
 

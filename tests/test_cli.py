@@ -102,6 +102,11 @@ def test_validate_info(decay):
         (["run", "{decay}", "--set", "d.nope=1"], "nope"),
         (["run", "{decay}", "--stop-time", "0.015"], "not a whole number of macro steps"),
         (["run", "{decay}", "--record", "x.y"], "--record x.y"),
+        (
+            ["run", "{decay}", "--record", "d.nope"],
+            "decay.ssd: record d.nope: unknown variable: the FMU of d",
+        ),
+        (["run", "{decay}", "--output-interval", "0.015"], "decay.ssd: record interval: interval 0.015 s"),
         (["plot", "missing.csv"], "missing.csv"),
     ],
 )
@@ -110,6 +115,8 @@ def test_user_errors_exit_non_zero_without_traceback(decay, args, message):
     assert r.returncode != 0
     assert message in r.stderr
     assert "Traceback" not in r.stderr
+    if r.returncode == 1:  # the master's own refusal (2: argparse's usage), in one line
+        assert len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
 def test_invalid_scenario_is_reported(tmp_path):

@@ -26,14 +26,13 @@ import master.api as api
 from master.backends.component import SimulationError
 from master.fmu import FmuError
 from master.scenario import ScenarioError
-from master.schedule import PlanError
 
 REPO = Path(__file__).resolve().parent.parent
 SCENES = sorted(
     [*(REPO / "tests" / "scenarios").rglob("*.ssd"), *(REPO / "models").glob("*/SystemStructure.ssd")]
 )
 GOOD = [s for s in SCENES if s.parent.name not in ("bad", "fmi3")]  # valid as they are
-CLEAN = (api.UsageError, ScenarioError, PlanError, FmuError, SimulationError)
+CLEAN = (api.UsageError, ScenarioError, FmuError, SimulationError)
 EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "100"))
 HOSTILE = [
     "",

@@ -1,4 +1,5 @@
-"""The schedule: exact times, window selection (extrapolate vs interpolate), start-up, plan checks."""
+"""The schedule: exact times, window selection (extrapolate vs interpolate), start-up; the rules a
+Scenario built in Python must keep before the planner sees it (`master.scenario.check`)."""
 
 from fractions import Fraction
 from pathlib import Path
@@ -6,8 +7,10 @@ from pathlib import Path
 import pytest
 
 from master.fmu import VariableInfo
+from master.scenario import check
+from master.scenario.fmuinfo import FmuInfo, Var
 from master.scenario.model import Component, Connection, Scenario, Stimulus
-from master.schedule import Capability, Clock, Link, PlanError, build_plan
+from master.schedule import Capability, Clock, Link, build_plan
 
 
 def var(name, causality, type_="Real"):
@@ -18,6 +21,15 @@ VARS = {
     "a": {"y": var("y", "output"), "u": var("u", "input"), "n": var("n", "output", "Integer")},
     "b": {"y": var("y", "output"), "u": var("u", "input"), "w": var("w", "input")},
 }
+
+
+# the same FMUs as the scenario checks see them
+FMUS = {
+    c: FmuInfo(Path(f"{c}.fmu"), "2.0", {
+        n: Var(n, v.type, v.causality, v.variability, None, None, None, None, None) for n, v in vs.items()
+    }, {}, True, False)
+    for c, vs in VARS.items()
+}  # fmt: skip
 
 
 def scene(**kw):
@@ -115,27 +127,53 @@ def test_interpolate_inputs_steps_once_per_macro_step_only_if_the_fmu_can():
     assert any("cannot interpolate inputs" in n for n in plan.notes)
 
 
+def test_the_scenes_these_tests_schedule_keep_every_rule():
+    assert check(scene(), FMUS) == []
+
+
 @pytest.mark.parametrize(
     "kw, message",
     [
-        (dict(stop_time=Fraction(21, 20)), "not a whole number of macro steps"),
-        (dict(connections=(Connection("a", "y", "b", "nope"),)), "has no variable 'nope'"),
-        (dict(connections=(Connection("a", "u", "b", "u"),)), "a.u has causality input, output needed"),
-        (dict(connections=(Connection("a", "y", "b", "u"), Connection("b", "y", "b", "u"))), "driven twice"),
-        (dict(connections=(Connection("a", "n", "b", "u"),)), "an Integer output cannot drive a Real input"),
-        (dict(connections=(Connection("x", "y", "b", "u"),)), "no component 'x'"),
-        (dict(record_interval=Fraction(1, 20)), "multiple of the macro step"),
-        (dict(record=(("a", "zz"),)), "record a.zz"),
-        (dict(stimuli=(Stimulus("a", "u", "step", (0.5,), (1.0,)),)), "already driven"),
+        (
+            dict(stop_time=Fraction(21, 20)),
+            "stop time - start time = 1.05 s is not a whole number of macro steps",
+        ),
+        (
+            dict(connections=(Connection("a", "y", "b", "nope"),)),
+            'the FMU of b (b.fmu) has no variable "nope"',
+        ),
+        (dict(connections=(Connection("a", "u", "b", "u"),)), "start a.u is an input, not an output"),
+        (
+            dict(connections=(Connection("a", "y", "b", "u"), Connection("b", "y", "b", "u"))),
+            "already driven",
+        ),
+        (dict(connections=(Connection("a", "n", "b", "u"),)), "type mismatch: a.n is Integer, b.u is Real"),
+        (dict(connections=(Connection("x", "y", "b", "u"),)), 'unknown component "x"'),
+        (dict(record_interval=Fraction(1, 20)), "not a positive multiple of the macro step"),
+        (dict(record=(("a", "zz"),)), 'has no variable "zz"'),
+        (dict(stimuli=(Stimulus("a", "u", "step", (0.5,), (1.0,)),)), "stimuli are for undriven inputs"),
+        (dict(stimuli=(Stimulus("b", "w", "step", (0.5, 0.2), (1.0, 2.0)),)), "times must not decrease"),
         (
             dict(components=(Component("a", Path("a.fmu"), step_ratio=0), Component("b", Path("b.fmu")))),
-            "step ratio",
+            "step ratio 0",
         ),
-        (dict(coupling="gauss-seidel", order=("a",)), "must list each component once"),
+        (dict(coupling="gauss-seidel", order=("a",)), "must list every component once"),
+        (dict(connections=(Connection("a", "y", "b", "u", extrapolation_order=4),)), "order 4 not in 0..3"),
+        (
+            dict(
+                components=(
+                    Component("a", Path("a.fmu")),
+                    Component("a", Path("a.fmu")),
+                    Component("b", Path("b.fmu")),
+                )
+            ),
+            'a second component named "a"',
+        ),
+        (dict(macro_step=Fraction(0)), "the macro step must be positive"),
+        (dict(stop_time=Fraction(0)), "is not after start time"),
     ],
 )
-def test_bad_scenarios_get_clear_errors(kw, message):
-    with pytest.raises(PlanError) as e:
-        build_plan(scene(**kw), VARS)
-    assert "scene.ssd" in str(e.value)
-    assert message in str(e.value)
+def test_bad_scenarios_get_clear_problems(kw, message):
+    (problem,) = check(scene(**kw), FMUS)
+    assert problem.file == "scene.ssd" and problem.line is None
+    assert message in str(problem)

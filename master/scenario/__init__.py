@@ -1,6 +1,7 @@
 """Scenario files: SSP 1.0 (.ssd / .ssp with .ssv parameter sets) plus the master's settings
 annotation, read into a validated, immutable `Scenario`.  Format: docs/scenario-format.md."""
 
+from .check import check
 from .model import Component, Connection, Scenario, Stimulus, Value
 from .problems import Problem, ScenarioError
 from .reader import load, parse_time, read, validate
@@ -13,6 +14,7 @@ __all__ = [
     "ScenarioError",
     "Stimulus",
     "Value",
+    "check",
     "load",
     "parse_time",
     "read",

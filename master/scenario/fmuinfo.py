@@ -69,6 +69,23 @@ def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     return COUPLED.get(fmi_type)
 
 
+def direction_problems(start: str, out_causality: str, end: str, in_causality: str) -> list[str]:
+    """Why a connection from `start` to `end` does not go output -> input (a problem per wrong
+    end); empty if it does."""
+    problems = []
+    if out_causality != "output":
+        problems.append(
+            f"start {start} is {_a(out_causality)}, not an output: connections go output -> input"
+        )
+    if in_causality != "input":
+        problems.append(f"end {end} is {_a(in_causality)}, not an input: connections go output -> input")
+    return problems
+
+
+def _a(causality: str) -> str:
+    return f"an {causality}" if causality[0] in "aeiou" else f"a {causality}"
+
+
 def connection_problem(
     start: str,
     out_type: str,

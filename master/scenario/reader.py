@@ -234,17 +234,10 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         inp = _end(ctx, elem, ee, ec)
         if out is None or inp is None:
             continue
-        if out.causality != "output" or inp.causality != "input":
-            if out.causality != "output":
-                ctx.at(
-                    elem,
-                    f"start {se}.{sc} is {_a(out.causality)}, not an output: connections go output -> input",
-                )
-            if inp.causality != "input":
-                ctx.at(
-                    elem,
-                    f"end {ee}.{ec} is {_a(inp.causality)}, not an input: connections go output -> input",
-                )
+        wrong_way = fmuinfo.direction_problems(f"{se}.{sc}", out.causality, f"{ee}.{ec}", inp.causality)
+        for problem in wrong_way:
+            ctx.at(elem, problem)
+        if wrong_way:
             continue
         links.append(((se, sc, ee, ec), elem))
         ok = True
@@ -270,10 +263,6 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         if ok:
             good.append(((se, sc, ee, ec), elem))
     return good, links
-
-
-def _a(causality: str) -> str:
-    return f"an {causality}" if causality[0] in "aeiou" else f"a {causality}"
 
 
 def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuinfo.Var | None:

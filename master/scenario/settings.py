@@ -56,6 +56,7 @@ class Settings:
 INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
 MAX_STEP_RATIO = 100_000  # communication steps of one component per macro step
 MAX_MACRO_STEPS = 10**10  # macro steps of one run
+MAX_ORDER = 3  # highest extrapolation order (the schema's TExtrapolationOrder)
 
 
 def _time(ctx: Context, elem: etree._Element, attr: str) -> Fraction | None:
@@ -134,13 +135,10 @@ def read(
         return None
     s = Settings(macro_step=macro, coupling=elem.get("coupling", "jacobi"))
     if times is not None:
-        span = times[1] - times[0]
-        if (span / macro).denominator != 1:
+        whole = steps_problem(times[1] - times[0], macro)
+        if whole:
             exp = root.find(tag(NS_SSD, "DefaultExperiment"))
-            ctx.at(
-                exp if exp is not None else elem,
-                f"stopTime - startTime = {_s(span)} is not a whole number of macro steps ({_s(macro)})",
-            )
+            ctx.at(exp if exp is not None else elem, f"stopTime - startTime = {whole}")
     _components(ctx, elem, s)
     if times is not None:
         _limits(ctx, elem, s, times)
@@ -156,26 +154,50 @@ def read(
 
 
 def _limits(ctx: Context, elem: etree._Element, s: Settings, times: tuple[Fraction, Fraction]) -> None:
-    """A run no machine can finish, or whose clocks leave exact float arithmetic, is refused here
-    with the figure that exceeds the limit, not discovered while running."""
-    start, stop = times
-    n_macro = (stop - start) / s.macro_step
+    for problem in limit_problems(*times, s.macro_step, s.step_ratio):
+        ctx.at(elem, problem)
+
+
+def steps_problem(span: Fraction, macro_step: Fraction) -> str | None:
+    """Why a run of `span` seconds is not a whole number of macro steps ("0.015 s is not a whole
+    number of macro steps (0.01 s)"); None if it is."""
+    if (span / macro_step).denominator == 1:
+        return None
+    return f"{seconds(span)} is not a whole number of macro steps ({seconds(macro_step)})"
+
+
+def limit_problems(
+    start: Fraction, stop: Fraction, macro_step: Fraction, ratios: dict[str, int]
+) -> list[str]:
+    """A run no machine can finish, or whose clocks leave exact float arithmetic, is refused before
+    it starts with the figure that exceeds the limit, not discovered while running.
+    ratios: component -> step ratio."""
+    n_macro = (stop - start) / macro_step
     if n_macro > MAX_MACRO_STEPS:
-        ctx.at(
-            elem,
-            f"{float(n_macro):.3g} macro steps from startTime to stopTime: at most {MAX_MACRO_STEPS:.0e}",
-        )
-        return
-    for name, k in {"the macro clock": 1, **s.step_ratio}.items():
-        if not Clock.make(start, s.macro_step, k).exact_up_to(math.ceil(n_macro) * k):
-            ctx.at(
-                elem,
-                f"{name}: times {_s(start)} + j {_s(s.macro_step / k)} need integers beyond 2^53 over "
-                f"{int(n_macro)} macro steps; choose times with fewer decimals",
-            )
+        return [f"{float(n_macro):.3g} macro steps from startTime to stopTime: at most {MAX_MACRO_STEPS:.0e}"]
+    return [
+        f"{name}: times {seconds(start)} + j {seconds(macro_step / k)} need integers beyond 2^53 over "
+        f"{int(n_macro)} macro steps; choose times with fewer decimals"
+        for name, k in {"the macro clock": 1, **ratios}.items()
+        if not Clock.make(start, macro_step, k).exact_up_to(math.ceil(n_macro) * k)
+    ]
 
 
-def _s(t: Fraction) -> str:
+def interval_problem(interval: Fraction, macro_step: Fraction) -> str | None:
+    """Why rows cannot be recorded every `interval` seconds; None if they can."""
+    if interval > 0 and (interval / macro_step).denominator == 1:
+        return None
+    return f"interval {seconds(interval)} is not a positive multiple of the macro step {seconds(macro_step)}"
+
+
+def ratio_problem(k: int) -> str | None:
+    """Why a component cannot take `k` (>= 1) communication steps per macro step; None if it can."""
+    if k > MAX_STEP_RATIO:
+        return f"{k} communication steps per macro step: at most {MAX_STEP_RATIO} are allowed"
+    return None
+
+
+def seconds(t: Fraction) -> str:
     """A time for messages: a decimal where it has a finite one, else the exact fraction."""
     d = t.denominator
     for p in (2, 5):
@@ -253,14 +275,18 @@ def _ratio(ctx: Context, ce: etree._Element, macro: Fraction) -> int:
         return 1
     k = macro / step
     if k.denominator != 1:
-        ctx.at(ce, f"communicationStep {_s(step)} does not divide the macro step {_s(macro)} (ratio {k})")
+        ctx.at(
+            ce,
+            f"communicationStep {seconds(step)} does not divide the macro step {seconds(macro)} (ratio {k})",
+        )
         return 1
     return _ratio_limit(ctx, ce, int(k))
 
 
 def _ratio_limit(ctx: Context, ce: etree._Element, k: int) -> int:
-    if k > MAX_STEP_RATIO:
-        ctx.at(ce, f"{k} communication steps per macro step: at most {MAX_STEP_RATIO} are allowed")
+    problem = ratio_problem(k)
+    if problem:
+        ctx.at(ce, problem)
         return 1
     return k
 
@@ -307,12 +333,9 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     s.record_coupling_errors = bool(_bool(rec.get("couplingErrors")))
     interval = _time(ctx, rec, "interval")
     if interval is not None:
-        k = interval / s.macro_step
-        if interval <= 0 or k.denominator != 1:
-            ctx.at(
-                rec,
-                f"interval {_s(interval)} is not a positive multiple of the macro step {_s(s.macro_step)}",
-            )
+        problem = interval_problem(interval, s.macro_step)
+        if problem:
+            ctx.at(rec, problem)
         else:
             s.record_interval = interval
     chosen = []

@@ -1,0 +1,252 @@
+"""The rules for a `Scenario` that did not come straight from a file: one built in Python, or a
+file's scenario after `master.api.apply_overrides` (--stop-time, --record, --output-interval).
+
+The reader applies these rules to files, with file:line, through the same rule functions
+(`fmuinfo`, `settings`); here a problem names the scenario's path and the part of the scenario,
+without a line (the object has none). `master.api.plan` runs `check` before the planner, which
+assumes a valid scenario and keeps no rule of its own.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from fractions import Fraction
+
+from . import fmuinfo
+from .fmuinfo import (
+    RECORDED,
+    FmuInfo,
+    SourceError,
+    Var,
+    connection_problem,
+    declared_range,
+    direction_problems,
+    element_names,
+    lookup,
+    no_element,
+    range_problem,
+    recordable,
+    stimulus_problem,
+    stimulus_value_problem,
+    typed,
+)
+from .model import Scenario
+from .problems import Problem, Problems
+from .settings import MAX_ORDER, interval_problem, limit_problems, ratio_problem, steps_problem
+
+COUPLINGS = ("jacobi", "gauss-seidel")
+STIMULUS_KINDS = ("step", "table")
+
+At = Callable[[str, str], None]  # at(element, message): report one problem
+Infos = Mapping[str, FmuInfo | None]  # component -> its FMU (None: unreadable, reported once)
+
+
+def check(sc: Scenario, fmus: Mapping[str, FmuInfo] | None = None) -> list[Problem]:
+    """Every problem of `sc` at once (empty: the planner can schedule it). fmus: component name ->
+    its FMU as the checks see it; None reads each component's `fmu_path` (an unreadable FMU is a
+    problem of its component)."""
+    problems = Problems()
+
+    def at(element: str, message: str) -> None:
+        problems.add(str(sc.path), None, element, message)
+
+    infos: Infos = dict(fmus) if fmus is not None else _read(sc, at)
+    _times(sc, at)
+    _components(sc, at)
+    driven = _connections(sc, infos, at)
+    _stimuli(sc, infos, driven, at)
+    _record(sc, infos, at)
+    return problems.items
+
+
+def _read(sc: Scenario, at: At) -> dict[str, FmuInfo | None]:
+    infos: dict[str, FmuInfo | None] = {}
+    for c in sc.components:
+        try:
+            info = fmuinfo.read(c.fmu_path)
+        except (SourceError, OSError) as err:
+            at(f"component {c.name}", f"{c.fmu_path}: {err}")
+            info = None
+        if info is not None and not info.co_simulation:
+            at(f"component {c.name}", f"{info.path.name} has no co-simulation interface")
+            info = None
+        infos[c.name] = info
+    return infos
+
+
+def _times(sc: Scenario, at: At) -> None:
+    start, stop, H = Fraction(sc.start_time), Fraction(sc.stop_time), Fraction(sc.macro_step)
+    if H <= 0:
+        at("macro step", f"the macro step must be positive, got {H} s")
+        return
+    if stop <= start:
+        at("stop time", f"stop time {float(stop):g} s is not after start time {float(start):g} s")
+        return
+    whole = steps_problem(stop - start, H)
+    if whole:
+        at("stop time", f"stop time - start time = {whole}")
+    ratios = {c.name: c.step_ratio for c in sc.components if _ratio_ok(c.step_ratio)}
+    for problem in limit_problems(start, stop, H, ratios):
+        at("stop time", problem)
+    if sc.record_interval is not None:
+        problem = interval_problem(Fraction(sc.record_interval), H)
+        if problem:
+            at("record interval", problem)
+
+
+def _whole(x: object) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _ratio_ok(k: object) -> bool:
+    return _whole(k) and k >= 1 and ratio_problem(k) is None
+
+
+def _components(sc: Scenario, at: At) -> None:
+    names = [c.name for c in sc.components]
+    for name in sorted({n for n in names if names.count(n) > 1}):
+        at(f"component {name}", f'a second component named "{name}"')
+    for c in sc.components:
+        where = f"component {c.name}"
+        if not _whole(c.step_ratio) or c.step_ratio < 1:
+            at(
+                where,
+                f"step ratio {c.step_ratio!r}: a positive whole number of communication steps is needed",
+            )
+        elif ratio_problem(c.step_ratio):
+            at(where, ratio_problem(c.step_ratio))
+        if not _order_ok(c.extrapolation_order):
+            at(where, f"extrapolation order {c.extrapolation_order!r} not in 0..{MAX_ORDER}")
+    if sc.coupling not in COUPLINGS:
+        at("coupling", f'"{sc.coupling}" is not a coupling: {" or ".join(COUPLINGS)}')
+    # Unlike a file's (settings: a likely mistake there), a Scenario's order under Jacobi is left
+    # alone: code that switches a scene's coupling keeps it, and Jacobi steps everyone at once
+    if sc.coupling == "gauss-seidel" and sc.order and sorted(sc.order) != sorted(names):
+        at("order", f"{list(sc.order)} must list every component once: {names}")
+
+
+def _order_ok(order: object) -> bool:
+    return _whole(order) and 0 <= order <= MAX_ORDER
+
+
+def _variable(infos: Infos, comp: str, name: str, at: At, where: str) -> Var | None:
+    """The FMU variable `comp`.`name`, or None after reporting an unknown component or variable
+    (silent where the component's FMU could not be read: that is reported once)."""
+    if comp not in infos:
+        at(where, f'unknown component "{comp}"')
+        return None
+    info = infos[comp]
+    if info is None:
+        return None
+    var = info.variables.get(name)
+    if var is None:
+        at(where, f'unknown variable: the FMU of {comp} ({info.path.name}) has no variable "{name}"')
+    return var
+
+
+def _connections(sc: Scenario, infos: Infos, at: At) -> dict[tuple[str, str], str]:
+    """Checks the connections; returns the inputs they drive: (component, input) -> connection."""
+    driven: dict[tuple[str, str], str] = {}
+    for cn in sc.connections:
+        se, sc_, ee, ec = cn.start_component, cn.start_connector, cn.end_component, cn.end_connector
+        where = f"connection {se}.{sc_} -> {ee}.{ec}"
+        if cn.extrapolation_order is not None and not _order_ok(cn.extrapolation_order):
+            at(where, f"extrapolation order {cn.extrapolation_order!r} not in 0..{MAX_ORDER}")
+        out = _variable(infos, se, sc_, at, where)
+        inp = _variable(infos, ee, ec, at, where)
+        if out is None or inp is None:
+            continue
+        wrong_way = direction_problems(f"{se}.{sc_}", out.causality, f"{ee}.{ec}", inp.causality)
+        for problem in wrong_way:
+            at(where, problem)
+        if wrong_way:
+            continue
+        problem = connection_problem(
+            f"{se}.{sc_}", out.type, infos[se].fmi_version, f"{ee}.{ec}", inp.type, infos[ee].fmi_version,
+            out.shape, inp.shape,
+        )  # fmt: skip
+        if problem:
+            at(where, problem)
+        elif out.unit and inp.unit and out.unit != inp.unit:
+            at(
+                where,
+                f'unit mismatch: {se}.{sc_} is in "{out.unit}", {ee}.{ec} in "{inp.unit}"'
+                " (unit conversion is not supported)",
+            )
+        if (ee, ec) in driven:
+            at(where, f"{ee}.{ec} is already driven by {driven[(ee, ec)]}")
+            continue
+        driven[(ee, ec)] = where
+    return driven
+
+
+def _stimuli(sc: Scenario, infos: Infos, driven: dict[tuple[str, str], str], at: At) -> None:
+    driven = dict(driven)
+    for s in sc.stimuli:
+        key, name = (s.component, s.variable), f"{s.component}.{s.variable}"
+        where = f"stimulus {name}"
+        if s.kind not in STIMULUS_KINDS:
+            at(where, f'kind "{s.kind}": a stimulus is a {" or a ".join(STIMULUS_KINDS)}')
+        if len(s.times) != len(s.values) or not s.times:
+            at(
+                where,
+                f"{len(s.times)} times and {len(s.values)} values: a stimulus needs as many of each, "
+                "one or more",
+            )
+        if not all(math.isfinite(x) for x in (*s.times, *s.values)):
+            at(where, "times and values must be finite numbers")
+        elif any(b < a for a, b in zip(s.times, s.times[1:], strict=False)):
+            at(where, "its times must not decrease")  # a repeated time: a jump in a table
+        var = _variable(infos, *key, at, where)
+        if var is None:
+            continue
+        if var.causality != "input":
+            at(where, f"{name} is {var.causality}, not an input: stimuli drive inputs")
+        elif key in driven:
+            at(where, f"{name} is driven by {driven[key]}: stimuli are for undriven inputs")
+        driven[key] = where
+        version = infos[s.component].fmi_version
+        problem = stimulus_problem(var.type, version, s.kind, var.shape)
+        if problem:
+            at(where, f"{name} is {typed(var.type, var.shape)}: {problem}")
+            continue
+        bounds = declared_range(var.type, var.min, var.max, var.items)
+        for t, v in zip(s.times, s.values, strict=False):
+            if not math.isfinite(v):
+                continue
+            wrong = stimulus_value_problem(var.type, version, v)
+            outside = range_problem(v, bounds)
+            if wrong:
+                at(where, f"value {v:g} is {wrong} ({name} is {var.type})")
+            elif outside:  # the FMU would refuse it in the run
+                whose = "its items" if var.min is None and var.max is None else "its min and max"
+                at(where, f"value {v:g} at time {t:g} s is {outside}, the range of {name} ({whose})")
+
+
+def _record(sc: Scenario, infos: Infos, at: At) -> None:
+    columns: set[tuple[str, str]] = set()  # (component, variable or array element) recorded so far
+    for comp, name in sc.record:
+        where = f"record {comp}.{name}"
+        if comp not in infos:
+            at(where, f'unknown component "{comp}"')
+            continue
+        info = infos[comp]
+        if info is None:
+            continue
+        found = lookup(info.variables, name)  # a variable, an array (every element) or one element
+        if found is None:
+            why = no_element(info.variables, name)
+            unknown = (
+                f"{comp}.{why}" if why else f'the FMU of {comp} ({info.path.name}) has no variable "{name}"'
+            )
+            at(where, f"unknown variable: {unknown}")
+            continue
+        var, position = found
+        names = element_names(var.name, var.shape) if position is None else [name]
+        if not recordable(var.type, info.fmi_version):
+            at(where, f"{comp}.{name} is {var.type}: the runtime records {RECORDED}")
+        elif columns & {(comp, n) for n in names}:
+            at(where, "recorded twice")
+        else:
+            columns.update((comp, n) for n in names)
