@@ -18,7 +18,7 @@ from master.backends.driver import execute, interruption, stop_signals
 from master.fmu import FmuError, read_description, variables_of
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary
 from master.scenario import ScenarioError, check
-from master.scenario.model import Scenario, Value
+from master.scenario.model import Component, Scenario, Value
 from master.schedule import Capability, Plan, build_plan
 
 log = logging.getLogger("master")
@@ -86,11 +86,7 @@ def apply_overrides(
             pairs.append((comp, var))
         sc = dataclasses.replace(sc, record=tuple(pairs))
     if set_values:
-        items = (
-            set_values.items()
-            if isinstance(set_values, dict)
-            else [(k, parse_value(v)) for k, v in map(_split_set, set_values)]
-        )
+        items = set_values.items() if isinstance(set_values, dict) else map(_split_set, set_values)
         comps = {c.name: c for c in sc.components}
         for key, value in items:
             comp, _, var = key.partition(".")
@@ -99,9 +95,31 @@ def apply_overrides(
                     f"--set {key}={value}: expected component.variable=value with a component of {names}"
                 )
             c = comps[comp]
+            if not isinstance(set_values, dict):  # text: converted by the variable's type
+                value = _typed_value(c, var, key, value)
             comps[comp] = dataclasses.replace(c, parameters={**c.parameters, var: value})
         sc = dataclasses.replace(sc, components=tuple(comps[n] for n in names))
     return sc
+
+
+def _typed_value(c: Component, name: str, key: str, text: str) -> Value:
+    """A --set text for variable `name` of component `c`, converted as the scenario reader does
+    (hex digits for a Binary, an item name for an Enumeration); `parse_value`'s guess where the
+    FMU cannot be read or has no such variable (the run then says why)."""
+    from master.scenario.fmuinfo import SourceError, lookup
+    from master.scenario.fmuinfo import read as read_info
+    from master.scenario.values import BadValue, from_string
+
+    try:
+        found = lookup(read_info(Path(c.fmu_path)).variables, name)
+    except (OSError, SourceError):
+        found = None
+    if found is None:
+        return parse_value(text)
+    try:
+        return from_string(found[0], text)
+    except BadValue as e:
+        raise UsageError(f"--set {key}={text}: {e}") from None
 
 
 def _split_set(text: str) -> tuple[str, str]:
@@ -203,8 +221,8 @@ def run(
         sc = apply_overrides(scenario, stop_time, record, set_values, output_interval, record_coupling_errors)
     else:  # the reader converts and checks --set values against the FMUs
         texts = dict(_split_set(s) for s in set_values) if isinstance(set_values, list) else None
-        if isinstance(set_values, dict):
-            texts = {k: str(v) for k, v in set_values.items()}
+        if isinstance(set_values, dict):  # bytes (a Binary) as the hex digits the reader takes
+            texts = {k: v.hex() if isinstance(v, bytes) else str(v) for k, v in set_values.items()}
         sc = apply_overrides(
             load_scenario(scenario, texts), stop_time, record, None, output_interval, record_coupling_errors
         )

@@ -101,6 +101,13 @@ def _fmi3_kind(v: VariableInfo) -> str:
     return "Int64" if t == "Enumeration" else t
 
 
+def _shown(value: object) -> str:
+    """A value for an error message: a long Binary by its size and first bytes."""
+    if isinstance(value, bytes) and len(value) > 16:
+        return f"{len(value)} bytes {value[:8].hex()}..."
+    return repr(value)
+
+
 def _plain_type(t: str) -> str:
     if t in REAL_TYPES:
         return "Real"
@@ -460,7 +467,7 @@ class Fmu:
             try:
                 self._set_one(v, value)
             except FMICallException as e:
-                raise FmuError(self.describe(f"cannot set {name} = {value!r}: {e}")) from e
+                raise FmuError(self.describe(f"cannot set {name} = {_shown(value)}: {e}")) from e
         for v, elements in arrays.values():
             try:
                 self._set_array(v, elements)
@@ -497,7 +504,7 @@ class Fmu:
 
     def _set_one(self, v: VariableInfo, value: object) -> None:
         """One value through the call of the variable's own type (FMI 3: Float32, Int8 ... UInt64,
-        Enumeration as Int64 too)."""
+        Enumeration as Int64 too, Binary through fmi3SetBinary)."""
         s = self.slave
         kind = _fmi3_kind(v) if self.fmi3 else v.type
         if kind in ("Real", "Float64", "Float32"):
@@ -516,10 +523,28 @@ class Fmu:
             s.setBoolean([v.vr], [bool(value)])
         elif kind == "String":
             s.setString([v.vr], [str(value)])
+        elif kind == "Binary":
+            s.setBinary([v.vr], [self._bytes(v, value)])
         else:
             raise FmuError(
                 f"{self.name}.{v.name}: variables of type {v.fmi_type or v.type} are not supported"
             )
+
+    def _bytes(self, v: VariableInfo, value: object) -> bytes:
+        """A Binary value: bytes as they are, text as hex digits (a Scenario built in Python, or
+        set_values given as text)."""
+        from master.scenario.values import hex_bytes
+
+        if isinstance(value, (bytes, bytearray)):
+            return bytes(value)
+        if isinstance(value, str):
+            try:
+                return hex_bytes(value)
+            except ValueError:
+                pass
+        raise FmuError(
+            f"{self.name}.{v.name}: {value!r} is not a Binary value (bytes, or hex digits as text)"
+        )
 
     # -- life cycle --------------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float) -> None:

@@ -11,7 +11,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Literal
 
-Value = float | int | bool | str
+Value = float | int | bool | str | bytes  # bytes: an FMI 3 Binary
 
 
 @dataclass(frozen=True)

@@ -69,6 +69,8 @@ def from_string(var: Var, text: str) -> Value:
         return enumeration(var, text)
     if kind == "String":
         return text
+    if kind == "Binary":
+        return binary(var, text)
     raise BadValue(f"{var.name} has type {var.type}, which parameters cannot set")
 
 
@@ -90,6 +92,8 @@ def from_ssv(var: Var, ssv_type: str, text: str, unit: str | None) -> Value:
         return text
     if ssv_type == "Enumeration" and kind == "Enumeration":
         return enumeration(var, text)
+    if ssv_type == "Binary" and kind == "Binary":  # mime-type not compared (SSP leaves that to users)
+        return binary(var, text)
     raise BadValue(f"type mismatch: ssv:{ssv_type} value for {var.name}, which is {var.type}")
 
 
@@ -106,6 +110,25 @@ def enumeration(var: Var, text: str) -> int:
         return number
     choices = ", ".join(f"{n}={v}" for n, v in var.items)
     raise BadValue(f'"{text}" is not an item of {var.name} ({choices})')
+
+
+def hex_bytes(text: str) -> bytes:
+    """The bytes that hex digits stand for ("0a1B2c", "0x0a1b2c", "0a 1b": two digits a byte);
+    ValueError if `text` is not that. An empty text is no bytes."""
+    text = text.strip()
+    if text[:2] in ("0x", "0X"):
+        text = text[2:]
+    return bytes.fromhex(text)
+
+
+def binary(var: Var, text: str) -> bytes:
+    """A Binary value from hex digits (ssv:Binary's xs:hexBinary, or --set c.b=0a1b2c)."""
+    try:
+        return hex_bytes(text)
+    except ValueError:
+        raise BadValue(
+            f'"{text}" is not hex digits ({var.name} is Binary: two digits a byte, such as 0a1b2c)'
+        ) from None
 
 
 def check_range(var: Var, value: float | int) -> float | int:

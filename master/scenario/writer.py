@@ -191,6 +191,8 @@ def _append_parameters(
 def _ssv_type(var: fmuinfo.Var, value: Value) -> str:
     if var.kind == "Enumeration":
         return "Enumeration"
+    if isinstance(value, bytes):
+        return "Binary"
     if isinstance(value, bool):
         return "Boolean"
     return "Integer" if isinstance(value, int) else "String" if isinstance(value, str) else "Real"
@@ -199,6 +201,8 @@ def _ssv_type(var: fmuinfo.Var, value: Value) -> str:
 def _ssv_text(var: fmuinfo.Var, value: Value) -> str:
     if var.kind == "Enumeration":  # the item's name, as people write it
         return next((n for n, v in var.items if v == value), str(value))
+    if isinstance(value, bytes):  # xs:hexBinary
+        return value.hex()
     return (
         str(value).lower()
         if isinstance(value, bool)
