@@ -262,7 +262,7 @@ def test_validate_accepts_string_to_string_and_refuses_string_to_a_number(folder
         ("ssd:Connection a.y_string -> b.repeat", "type mismatch: a.y_string is String, b.repeat is Integer"),
         ("ssd:Connection a.y_length -> b.u_string",
          "type mismatch: a.y_length is Integer, b.u_string is String"),
-        ("mm:Step a.u_string", "a.u_string is String: stimuli drive numeric and Enumeration inputs"),
+        ("mm:Step a.u_string", "a.u_string is String: stimuli drive numeric, Boolean and Enumeration inputs"),
     ]  # fmt: skip
     run = subprocess.run([*command, str(bad)], capture_output=True, text=True, timeout=120)
     assert run.returncode != 0 and "a.y_string is String, b.repeat is Integer" in run.stdout + run.stderr

@@ -232,7 +232,7 @@ def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_end
     stimuli = (
         '<mm:Stimuli><mm:Table component="b" variable="u_int8"><mm:Point time="0" value="1"/></mm:Table>'
         '<mm:Step component="b" variable="u_uint8"><mm:Point time="0" value="300"/></mm:Step>'
-        '<mm:Step component="b" variable="u_boolean"><mm:Point time="0" value="1"/></mm:Step></mm:Stimuli>'
+        '<mm:Step component="b" variable="u_boolean"><mm:Point time="0" value="2"/></mm:Step></mm:Stimuli>'
     )
     path = ssd(
         folder / "bad.ssd", {"a": "alltypes.fmu", "b": "alltypes.fmu", "g": "gain"}, conns, stimuli, stop="2"
@@ -249,7 +249,7 @@ def test_mismatched_and_unconnectable_types_are_one_problem_each_naming_both_end
          "type mismatch: a.y_enumeration is Enumeration, b.u_int64 is Int64"),
         ("mm:Table b.u_int8", "b.u_int8 is Int8: an Int8 input takes a step stimulus, not a table"),
         ("mm:Point", "value 300 is outside [0, 255] (b.u_uint8 is UInt8)"),
-        ("mm:Step b.u_boolean", "b.u_boolean is Boolean: stimuli drive numeric and Enumeration inputs"),
+        ("mm:Point", "value 2 is not 0 (false) or 1 (true) (b.u_boolean is Boolean)"),
     ]  # fmt: skip
     # an FMI 2 Enumeration is carried as an Integer, an FMI 3 one as an Int64: not connected either
     assert "connect enumerations of one FMI version" in connection_problem(
@@ -350,3 +350,14 @@ def test_a_failing_typed_call_is_named_with_its_fmi_function(monkeypatch):
     for backend in ("serial", "in-process"):
         with pytest.raises(api.SimulationError, match=failure):
             api.run(sc, backend=backend)
+
+
+def test_a_step_stimulus_drives_a_boolean_input():
+    """u_boolean steps 0 -> 1 -> 0 through fmi3SetBoolean; y_boolean = not u_boolean, read at each
+    row with the input set for the row's step, in every backend."""
+    switch = Stimulus("a", "u_boolean", "step", (0.3, 0.7), (1.0, 0.0))
+    sc = Scenario(Path("switch.ssd"), "switch", (Component("a", alltypes()),), (), Fraction(0), Fraction(1),
+                  H, stimuli=(switch,), record=(("a", "u_boolean"), ("a", "y_boolean")))  # fmt: skip
+    d = run_everywhere(sc)
+    assert list(d["a.u_boolean"]) == [0, 0, 0, 0, 1, 1, 1, 1, 0, 0, 0]  # the step from t - H sets it
+    assert np.array_equal(d["a.y_boolean"], 1 - d["a.u_boolean"])

@@ -375,7 +375,7 @@ class CompiledPlan:
                 n=len(s.times),
                 times=_ptr(self._array([float(t) for t in s.times], np.float64), C.c_double),
                 values=_ptr(self._array([float(v) for v in s.values], np.float64), C.c_double),
-                start_value=float(start) if start is not None else 0.0,
+                start_value=_start_number(start),
             )
         c.n_stimuli, c.stimuli = len(stimuli), c_stim
         self._keep += [c_links, c_stim]
@@ -661,6 +661,12 @@ class CompiledPlan:
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+
+def _start_number(start: str | None) -> float:
+    """A variable's start value as the number a step stimulus holds before its first time (a
+    Boolean's "true" / "false": 1 / 0; none: 0)."""
+    return {"true": 1.0, "false": 0.0}[start] if start in ("true", "false") else float(start or 0)
 
 
 def text_columns(plan: Plan) -> list[str]:

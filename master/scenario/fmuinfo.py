@@ -43,7 +43,7 @@ COUPLED = {
 CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the other kinds are held
 TEXTS = ("String", "Binary")  # the kinds carried as bytes, not as numbers: never stimulated
 CONNECTABLE = "numeric, Boolean, Enumeration, String and Binary signals"
-STIMULATED = "numeric and Enumeration"
+STIMULATED = "numeric, Boolean and Enumeration"
 INT_RANGES = {
     "Int8": (-(2**7), 2**7 - 1),
     "UInt8": (0, 2**8 - 1),
@@ -192,10 +192,10 @@ def no_element(variables: Mapping[str, Any], name: str) -> str | None:
 
 def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[int, ...] = ()) -> str | None:
     """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type (and shape:
-    () for a scalar); None if it can. Numeric and Enumeration scalar inputs take steps; tables
-    (piecewise linear) only continuous ones."""
+    () for a scalar); None if it can. Numeric, Boolean and Enumeration scalar inputs take steps;
+    tables (piecewise linear) only continuous ones."""
     carried = coupling_kind(fmi_type, fmi_version)
-    if carried is None or carried == "Boolean" or carried in TEXTS:
+    if carried is None or carried in TEXTS:
         return f"stimuli drive {STIMULATED} inputs"
     if shape:
         return "stimuli drive scalar inputs, not arrays"
@@ -211,6 +211,8 @@ def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str
         return None
     if fmi_type == "Float32":
         return None if abs(value) <= FLOAT32_MAX else f"outside [-{FLOAT32_MAX:g}, {FLOAT32_MAX:g}]"
+    if fmi_type == "Boolean":
+        return None if value in (0, 1) else "not 0 (false) or 1 (true)"
     if value != int(value):
         return "not an integer"
     typed = "Int32" if fmi_type in ("Integer", "Enumeration") and fmi_version.startswith("2") else fmi_type
