@@ -317,7 +317,7 @@ def build_plan(
 
     # recording
     def can_record(comp: str, v: VariableInfo) -> bool:
-        return recordable(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version)
+        return recordable(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version, v.shape)
 
     record = tuple(sc.record)
     if not record:  # every output the runtime can record (arrays too); a note names the others

@@ -123,3 +123,15 @@ def test_validate_and_run_accept_binary_connections_in_a_scenario_file(tmp_path:
                          capture_output=True, text=True, timeout=120)  # fmt: skip
     assert run.returncode == 0, run.stderr
     assert out.read_text().splitlines()[-1] == '0.5,"000404"'  # b holds a's stamp at 0.4 (Jacobi)
+
+
+def test_every_scalar_type_is_recordable_and_arrays_of_numbers_and_booleans():
+    from master.scenario.fmuinfo import recordable, recorded_as
+
+    fmi3 = ("Float64", "Float32", "Int8", "UInt64", "Boolean", "Enumeration", "String", "Binary")
+    assert all(recordable(t, "3.0") for t in fmi3) and not recordable("Clock", "3.0")
+    assert recordable("Int8", "3.0", (2,)) and recordable("Boolean", "3.0", (2, 2))
+    assert not recordable("String", "3.0", (2,)) and not recordable("Binary", "3.0", (3,))
+    assert [recorded_as(t) for t in ("Float32", "Int64", "UInt64", "String", "Binary", "Enumeration")] == [
+        "float64", "int64", "uint64", "String", "Binary", "float64"
+    ]  # fmt: skip

@@ -244,7 +244,7 @@ def _record(sc: Scenario, infos: Infos, at: At) -> None:
             continue
         var, position = found
         names = element_names(var.name, var.shape) if position is None else [name]
-        if not recordable(var.type, info.fmi_version):
+        if not recordable(var.type, info.fmi_version, var.shape):
             at(where, f"{comp}.{name} is {var.type}: the runtime records {RECORDED}")
         elif columns & {(comp, n) for n in names}:
             at(where, "recorded twice")

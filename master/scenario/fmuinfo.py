@@ -256,14 +256,18 @@ def _an(word: str) -> str:
     return f"an {word}" if word[0] in "AEIOU" else f"a {word}"
 
 
-RECORDED = "Real, Integer, Boolean, Enumeration and String values (FMI 3: every numeric type and Binary)"
+RECORDED = (
+    "Real, Integer, Boolean, Enumeration and String values (FMI 3: every numeric type and Binary; "
+    "arrays of numbers and Booleans)"
+)
 
 
-def recordable(fmi_type: str, fmi_version: str) -> bool:
-    """Whether the runtime can record a variable of this type: what connections carry (in FMI 3
-    every numeric type and Enumeration, each read through its own call, and Binary; Strings
-    and Binaries of at most 1023 bytes)."""
-    return coupling_kind(fmi_type, fmi_version) is not None
+def recordable(fmi_type: str, fmi_version: str, shape: tuple[int, ...] = ()) -> bool:
+    """Whether the runtime can record a variable of this type (and shape: () for a scalar): what
+    connections carry (in FMI 3 every numeric type and Enumeration, each read through its own
+    call, and Binary; Strings and Binaries of at most 1023 bytes, scalars only)."""
+    kind = coupling_kind(fmi_type, fmi_version)
+    return kind is not None and not (shape and kind in TEXTS)
 
 
 def recorded_as(fmi_type: str) -> str:

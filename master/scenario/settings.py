@@ -346,7 +346,7 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
         if found is not None:
             var, position = found
             names = element_names(var.name, var.shape) if position is None else [key[1]]
-            if not recordable(var.type, ctx.comps[key[0]].info.fmi_version):
+            if not recordable(var.type, ctx.comps[key[0]].info.fmi_version, var.shape):
                 ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {RECORDED}")
             elif columns & {(key[0], n) for n in names}:
                 ctx.at(ve, "recorded twice")
