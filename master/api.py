@@ -229,6 +229,8 @@ def run(
     p = plan(sc)
     for note in p.notes:
         log.info(note)
+    for warning in p.warnings:
+        log.warning(warning)
     with stop_signals():
         if cpus is not None:
             if backend == "in-process":

@@ -145,6 +145,7 @@ class Plan:
     record_every: int  # macro steps between recorded rows
     macro_clock: Clock
     notes: tuple[str, ...] = field(default=())  # start-up and capability notes for the run log
+    warnings: tuple[str, ...] = field(default=())  # what a user must know even with --quiet
     # Start-up (the paper's step 3): macro steps 0 .. startup_steps-1 are each repeated
     # `startup_sweeps` times from saved FMU states with relaxed windows (Link.window).
     startup_steps: int = 0
@@ -339,13 +340,15 @@ def build_plan(
     every = 1 if sc.record_interval is None else int(Fraction(sc.record_interval) / H)
 
     by_file: dict[str, list[str]] = {}
+    warnings: list[str] = []
     for c in sc.components:
         cap = capabilities.get(c.name, Capability())
         if cap.once_per_process:
             by_file.setdefault(str(c.fmu_path), []).append(c.name)
         if cap.needs_execution_tool:
-            notes.append(
-                f"{c.name}: the FMU needs its execution tool (needsExecutionTool): it must be installed"
+            warnings.append(
+                f'warning: {c.name}: its FMU needs its execution tool (needsExecutionTool="true"): '
+                "the run fails unless that tool is installed and licensed here"
             )
     exclusive = tuple(tuple(names) for names in by_file.values() if len(names) > 1)
     for names in exclusive:
@@ -364,6 +367,7 @@ def build_plan(
         record_every=every,
         macro_clock=Clock.make(start, H, 1),
         notes=tuple(notes),
+        warnings=tuple(warnings),
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
         exclusive=exclusive,

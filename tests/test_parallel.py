@@ -283,20 +283,24 @@ def test_exclusive_fmu_runs_twice_only_in_workers():
     assert_no_children()
 
 
-def test_declared_once_per_process_gets_a_worker_per_instance(tmp_path):
-    """canBeInstantiatedOnlyOncePerProcess="true": every backend with workers gives each instance
-    its own, with the serial results; the in-process backend refuses in one line."""
+def flagged(tmp_path: Path, flag: str) -> Path:
+    """The crashtest FMU with a capability flag of its CoSimulation element set to "true"."""
     import zipfile
 
-    src, once = fmu_path("crashtest"), tmp_path / "once.fmu"
-    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(once, "w") as zout:
+    out = tmp_path / f"{flag}.fmu"
+    with zipfile.ZipFile(fmu_path("crashtest")) as zin, zipfile.ZipFile(out, "w") as zout:
         for item in zin.infolist():
             data = zin.read(item)
             if item.filename == "modelDescription.xml":
-                data = data.replace(
-                    b"<CoSimulation ", b'<CoSimulation canBeInstantiatedOnlyOncePerProcess="true" '
-                )
+                data = data.replace(b"<CoSimulation ", f'<CoSimulation {flag}="true" '.encode())
             zout.writestr(item, data)
+    return out
+
+
+def test_declared_once_per_process_gets_a_worker_per_instance(tmp_path):
+    """canBeInstantiatedOnlyOncePerProcess="true": every backend with workers gives each instance
+    its own, with the serial results; the in-process backend refuses in one line."""
+    once = flagged(tmp_path, "canBeInstantiatedOnlyOncePerProcess")
     sc = lags(3, params={f"c{i}": {"exclusive": True} for i in range(3)})
     sc = dataclasses.replace(
         sc, components=tuple(dataclasses.replace(c, fmu_path=once) for c in sc.components)
@@ -310,6 +314,20 @@ def test_declared_once_per_process_gets_a_worker_per_instance(tmp_path):
     with pytest.raises(api.UsageError, match="only once per process"):
         api.run(sc, backend="in-process")
     assert_no_children()
+
+
+def test_an_fmu_that_needs_its_execution_tool_is_run_with_a_warning(tmp_path, caplog):
+    """needsExecutionTool="true": the run goes on (the tool may be there), and a warning that
+    --quiet does not silence names the component."""
+    sc, tool = lags(2), flagged(tmp_path, "needsExecutionTool")
+    first = dataclasses.replace(sc.components[0], fmu_path=tool)
+    sc = dataclasses.replace(sc, components=(first, *sc.components[1:]))
+    with caplog.at_level("WARNING", logger="master"):
+        assert len(api.run(sc, backend="serial").data) == 201
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
+        'warning: c0: its FMU needs its execution tool (needsExecutionTool="true"): the run fails unless '
+        "that tool is installed and licensed here"
+    ]
 
 
 def long_run(
