@@ -106,9 +106,18 @@ class Recorder:
         if self._text and texts is not None:
             rows = np.array(rows)  # the ring's rows stay as they are
             for j, col in enumerate(self._text):
-                rows[:, col] = [self._place(j, slot) for slot in texts[:, j]]
+                rows[:, col] = self._places(j, texts[:, j])
         self._append(rows)
         self.rows += len(rows)
+
+    def _places(self, j: int, slots: np.ndarray) -> np.ndarray:
+        """Where text column j's values of a block of rows lie in the side file: a row whose slot
+        equals the one before it (held values mostly do) takes its place without a look."""
+        new = np.ones(len(slots), bool)
+        new[1:] = np.any(slots[1:] != slots[:-1], axis=1)
+        looked = np.flatnonzero(new)
+        places = np.array([self._place(j, slots[r]) for r in looked], dtype=np.float64)
+        return places[np.cumsum(new) - 1]  # each row: the place of the last row looked at
 
     def _place(self, j: int, slot: np.ndarray) -> int:
         """Where text column j's value of one row lies in the side file (appended if it changed)."""
