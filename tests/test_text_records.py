@@ -94,23 +94,21 @@ def test_binary_and_string_columns_in_the_csv_file_and_back(tmp_path: Path):
 
 
 def test_a_recorded_string_beyond_1023_bytes_stops_the_run_and_keeps_the_rows_before(tmp_path: Path):
-    """t.y_string = u_string + 6 copies of a 200-byte suffix once the stimulus (from 0.55) is set
-    (1200 bytes): the row that reads it cannot hold it; the run stops with one line, the rows
-    before are written. (t has no output read at communication points that depends on its
-    inputs, so its step-end inputs are not set after each step: the row at 0.6 reads the output of
-    the step from 0.5 with the inputs at 0.5, and the long String appears in the row at 0.7.)"""
+    """t.y_string = u_string + 6 copies of a 200-byte suffix from t = 0.6 on (the stimulus steps at
+    0.55; y_string depends on repeat, so the step-end input is set after each step): 1200 bytes,
+    which the row at 0.6 cannot hold; the run stops with one line, the rows before are written."""
     text = fmu_path("text", fmi=3)
     sc = Scenario(Path("long.ssd"), "long", (Component("t", text, {"suffix": "s" * 200}),), (), Fraction(0),
                   Fraction(1), H, stimuli=(Stimulus("t", "repeat", "step", (0.55,), (6.0,)),),
                   record=(("t", "y_string"),))  # fmt: skip
-    message = "t.y_string is 1200 bytes long at t=0.7: a recorded String holds at most 1023 bytes"
+    message = "t.y_string is 1200 bytes long at t=0.6: a recorded String holds at most 1023 bytes"
     for backend in BACKENDS:
         with pytest.raises(api.SimulationError) as failed:
             api.run(sc, backend=backend, output=tmp_path / f"{backend}.csv")
         assert message in str(failed.value)
         rows = failed.value.result.data  # type: ignore[attr-defined]
-        assert list(rows["t.y_string"]) == ["s" * 200] * 7  # t = 0 ... 0.6
-        assert len(read_csv(tmp_path / f"{backend}.csv")) == 7
+        assert list(rows["t.y_string"]) == ["s" * 200] * 6  # t = 0 ... 0.5
+        assert len(read_csv(tmp_path / f"{backend}.csv")) == 6
 
 
 def test_validate_and_run_accept_binary_connections_in_a_scenario_file(tmp_path: Path):

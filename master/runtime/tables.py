@@ -334,8 +334,10 @@ class CompiledPlan:
                 if kind in used and calls[kind] is None:
                     raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi3{verb}{name}")
         self._string_tables(c, pc, fmu, text_links)
-        texts = string_output_names(plan, pc.name)  # a String output that depends on numeric inputs
-        fed = any(variable(fmu, o).name in fmu.feedthrough for o in out + texts)
+        # an output read at communication points or rows that depends on inputs: the step-end inputs
+        # are set after each step (a coupled String or Binary, or a recorded output of any type, too)
+        read = out + string_output_names(plan, pc.name) + [v for c, v in plan.record if c == pc.name]
+        fed = any(variable(fmu, o).name in fmu.feedthrough for o in read)
         c.feedthrough = int(bool(in_names) and fed)
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
