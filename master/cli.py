@@ -308,7 +308,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         print(api.info(args.path))
         return 0
     if args.command == "plot":
-        from master.recorder import plot_result, read_csv
+        from master.recorder import number_columns, plot_result, read_csv
 
         csv = Path(args.csv)
         if not csv.is_file():
@@ -325,6 +325,9 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
                 raise api.UsageError(
                     f"{csv}: no column {missing[0]!r}; columns: {', '.join(data.dtype.names)}"
                 )
+            text = [r for r in args.record if r != "time" and r not in number_columns(data)]
+            if text:
+                raise api.UsageError(f"{csv}: column {text[0]!r} holds text, not numbers to plot")
         png = Path(args.output) if args.output else csv.with_suffix(".png")
         units = None
         try:  # the run's metadata beside the CSV gives each column's unit: one panel per unit

@@ -73,7 +73,7 @@ class Recorder:
         if self.csv_path is not None:
             try:
                 self.csv_path.parent.mkdir(parents=True, exist_ok=True)
-                self._csv = open(self.csv_path, "w")
+                self._csv = open(self.csv_path, "w", encoding="utf-8")
                 self._csv.write(",".join(f'"{c}"' if c != "time" else c for c in columns) + "\n")
             except OSError as e:
                 raise ResultsError(
@@ -84,7 +84,6 @@ class Recorder:
         self._bin = open(self.bin_path, "wb")
         self.texts_path = self.tmpdir / "texts.bin"  # each: its length (8 bytes), its bytes
         self._texts = open(self.texts_path, "w+b") if self._text else None
-        self._text_cache: dict[int, bytes] = {}
 
     def next_row(self) -> np.ndarray:
         """The row to fill next (a view into the chunk); call `commit()` once it is filled."""
@@ -133,16 +132,17 @@ class Recorder:
         self._last[j] = (value, place)
         return place
 
-    def _text_at(self, place: int) -> bytes:
-        value = self._text_cache.get(place)
-        if value is None:
-            assert self._texts is not None
-            self._texts.flush()
-            with open(self.texts_path, "rb") as f:
-                f.seek(place)
-                n = int(np.frombuffer(f.read(8), np.uint64)[0])
-                value = self._text_cache[place] = f.read(n)
-        return value
+    def _texts_at(self, places: np.ndarray) -> dict[int, bytes]:
+        """The stored bytes at each of these places of the side file (read, not kept: memory stays
+        flat whatever the number of distinct values)."""
+        assert self._texts is not None
+        self._texts.flush()
+        found = {}
+        for place in set(map(int, places)):
+            self._texts.seek(place)
+            n = int(np.frombuffer(self._texts.read(8), np.uint64)[0])
+            found[place] = self._texts.read(n)
+        return found
 
     def _value(self, column: str, raw: bytes) -> str | bytes:
         """A String (str) or Binary (bytes) from its stored bytes."""
@@ -175,9 +175,9 @@ class Recorder:
             if t in _RAW:
                 cells.append([str(v) for v in x.view(_RAW[t])])
             elif t in TEXT_TYPES:
-                shown = {p: self._text_at(p) for p in map(int, x)}
-                cells.append([_quoted(shown[int(p)].hex() if t == "Binary" else shown[int(p)].decode(
-                    "utf-8", "replace")) for p in x])  # fmt: skip
+                shown = {p: _quoted(v.hex() if t == "Binary" else v.decode("utf-8", "replace"))
+                         for p, v in self._texts_at(x).items()}  # fmt: skip
+                cells.append([shown[int(p)] for p in x])
             else:
                 cells.append([f"{v:.17g}" for v in x])
         return [",".join(row) + "\n" for row in zip(*cells, strict=True)]
@@ -204,7 +204,7 @@ class Recorder:
         out = np.empty(len(raw), dtype)
         for c in self.columns:
             if c in texts:
-                values = {p: self._value(c, self._text_at(p)) for p in set(map(int, raw[c]))}
+                values = {p: self._value(c, v) for p, v in self._texts_at(raw[c]).items()}
                 out[c] = [values[int(p)] for p in raw[c]]
             else:
                 out[c] = raw[c]
@@ -225,9 +225,9 @@ def _quoted(text: str) -> str:
 def read_csv(path: str | Path) -> np.ndarray:
     """A results CSV file (`Recorder`'s, or any of numbers under a header of quoted or plain
     names) as a structured array: a float64 field per column of numbers (64-bit integers beyond
-    2^53 rounded), an object field of str per column of quoted texts (a Binary's hex digits).
-    ValueError if it is not one."""
-    with open(path, newline="") as f:
+    2^53 rounded), an object field of str per column of quoted texts (a Binary's hex digits; a file
+    without rows has float64 fields only). ValueError if it is not one."""
+    with open(path, newline="", encoding="utf-8") as f:
         header = next(csv.reader([f.readline()]), None)
         if not header:
             raise ValueError("no header line")
@@ -238,7 +238,7 @@ def read_csv(path: str | Path) -> np.ndarray:
                 rows = np.loadtxt(f, delimiter=",", ndmin=2)
         except ValueError:  # quoted texts among the numbers
             f.seek(start)
-            return _read_typed(list(csv.reader(f, quoting=csv.QUOTE_NONNUMERIC)), header)
+            return _read_typed([r for r in csv.reader(f, quoting=csv.QUOTE_NONNUMERIC) if r], header)
     if rows.size == 0:
         rows = np.zeros((0, len(header)))
     if rows.shape[1] != len(header):

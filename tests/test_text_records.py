@@ -8,6 +8,8 @@ values are computed here from those rules and the documented holding of discrete
 
 from __future__ import annotations
 
+import os
+import pickle
 import subprocess
 import sys
 from fractions import Fraction
@@ -91,6 +93,33 @@ def test_binary_and_string_columns_in_the_csv_file_and_back(tmp_path: Path):
     assert [bytes.fromhex(v) for v in back["a.stamp"]] == list(d["a.stamp"])
     assert list(back["t.y_string"]) == list(d["t.y_string"])
     assert np.array_equal(back["t.y_length"], d["t.y_length"]) and np.array_equal(back["time"], d["time"])
+
+
+def test_texts_with_newlines_and_quotes_a_plot_of_numbers_only_and_a_non_utf8_locale(tmp_path: Path):
+    """A String with a newline, quotes and non-ASCII bytes survives the CSV file (written as UTF-8
+    whatever the locale) and `read_csv` (blank lines skipped); `master plot` draws the numeric
+    columns and refuses a text column in one line."""
+    text = fmu_path("text", fmi=2)
+    comp = Component("t", text, {"suffix": "", "u_string": 'a\n"é"\r\nb'})
+    sc = Scenario(Path("nl.ssd"), "nl", (comp,), (), Fraction(0), Fraction(1, 2), H,
+                  record=(("t", "y_string"), ("t", "y_length")))  # fmt: skip
+    out, scene = tmp_path / "out.csv", tmp_path / "scene.pkl"
+    scene.write_bytes(pickle.dumps(sc))
+    script = (f"import pickle, master.api as api; sc = pickle.loads(open({str(scene)!r}, 'rb').read())\n"
+              f"api.run(sc, backend='serial', output={str(out)!r})")  # fmt: skip
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
+    assert run.returncode == 0, run.stderr
+    with out.open("a", encoding="utf-8") as f:
+        f.write("\n")  # a blank line at the end: skipped
+    back = read_csv(out)
+    assert list(back["t.y_string"]) == ['a\n"é"\r\nb'] * 6 and list(back["t.y_length"]) == [9.0] * 6
+    plot = [sys.executable, "-m", "master", "plot", str(out)]
+    assert subprocess.run(plot, capture_output=True, text=True, timeout=120).returncode == 0
+    refused = subprocess.run([*plot, "--record", "t.y_string"], capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 1 and refused.stderr.strip().splitlines() == [
+        f"error: {out}: column 't.y_string' holds text, not numbers to plot"
+    ]
 
 
 def test_a_recorded_string_beyond_1023_bytes_stops_the_run_and_keeps_the_rows_before(tmp_path: Path):

@@ -621,7 +621,7 @@ class CompiledPlan:
                 what = "NaN" if math.isnan(e.value) else ("+Inf" if e.value > 0 else "-Inf")
             return SimulationError(f"unstable: {name}.{bad} at t={t}: {what} ({UNSTABLE_HINT})", name, t, bad)
         if e.code == native.TOO_LONG:
-            recording = native.CALLS[e.call] in ("get_string", "get_binary")  # else a connection's
+            recording = e.call >= 0  # a row's read (MK_CALL_GET_STRING / _BINARY), else a connection's
             if recording:
                 bad = self.plan.record[self.record_index[e.variable]][1]
             else:
