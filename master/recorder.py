@@ -175,7 +175,7 @@ class Recorder:
             if t in _RAW:
                 cells.append([str(v) for v in x.view(_RAW[t])])
             elif t in TEXT_TYPES:
-                shown = {p: _quoted(v.hex() if t == "Binary" else v.decode("utf-8", "replace"))
+                shown = {p: _quoted(v.hex() if t == "Binary" else self._value(name, v))
                          for p, v in self._texts_at(x).items()}  # fmt: skip
                 cells.append([shown[int(p)] for p in x])
             else:

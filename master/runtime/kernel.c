@@ -331,6 +331,18 @@ static int set_kind(const mk_component *c, int32_t kind, const uint32_t *vrs, in
     }
 }
 
+/* Read n values v (of nvr value references) of one kind through the call of that kind, as
+ * get_typed (inexact may be NULL); *call says which call it was. */
+static int get_kind(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, double *v, int32_t n,
+                    int32_t *call, int32_t *inexact, uint64_t *integer) {
+    switch (kind) {
+    case MK_REAL_SAMPLE: *call = MK_CALL_GET_REAL; return get_real(c, vrs, nvr, v, n);
+    case MK_INTEGER: *call = MK_CALL_GET_INTEGER; return get_discrete(c, kind, vrs, nvr, v, n);
+    case MK_BOOLEAN: *call = MK_CALL_GET_BOOLEAN; return get_discrete(c, kind, vrs, nvr, v, n);
+    default: *call = TYPED_CALL(MK_CALL_GET_TYPED, kind); return get_typed(c, kind, vrs, nvr, v, n, inexact, integer);
+    }
+}
+
 /* Set the inputs u[0..n_in) (Real, Integer, Boolean, then the typed ones a kind per call in turn;
  * with FMI 3 arrays among them, the calls in_calls); *call says which call failed. */
 static int set_inputs(const mk_component *c, const double *u, int32_t *call) {
@@ -365,23 +377,9 @@ static int get_calls(const mk_component *c, double *row, int32_t *call, int32_t 
     *inexact = -1;
     for (int32_t g = 0; g < c->n_out_calls; g++) {
         const mk_call *k = &c->out_calls[g];
-        double *v = row + k->first;
         int32_t bad = -1;
-        switch (k->kind) {
-        case MK_REAL_SAMPLE:
-            *call = MK_CALL_GET_REAL;
-            st = get_real(c, k->vrs, k->n_vrs, v, k->n_values);
-            break;
-        case MK_INTEGER:
-        case MK_BOOLEAN:
-            *call = k->kind == MK_INTEGER ? MK_CALL_GET_INTEGER : MK_CALL_GET_BOOLEAN;
-            st = get_discrete(c, k->kind, k->vrs, k->n_vrs, v, k->n_values);
-            break;
-        default:
-            *call = TYPED_CALL(MK_CALL_GET_TYPED, k->kind);
-            st = get_typed(c, k->kind, k->vrs, k->n_vrs, v, k->n_values, &bad, integer);
-        }
-        if (st > STATUS_OK) return st;
+        if ((st = get_kind(c, k->kind, k->vrs, k->n_vrs, row + k->first, k->n_values, call, &bad, integer)) > STATUS_OK)
+            return st;
         if (bad >= 0) {
             *inexact = k->first + bad;
             break;
@@ -566,38 +564,14 @@ static void store(double *to, int32_t how, double value) {
 }
 
 /* One recorded value of any kind but MK_REAL_SAMPLE into its row's 8 bytes as `how` says: an Int64
- * or UInt64 stored as such is exact whatever its magnitude. */
-static int get_scalar(const mk_component *c, int32_t kind, int32_t how, uint32_t vr, double *out) {
-    int status;
-    if (how != MK_STORE_DOUBLE) { /* the bits of an int64 or uint64, read through its own call */
-        typedef int get_t(void *, const uint32_t *, size_t, void *, size_t);
-        uint64_t v = 0;
-        status = ((get_t *)c->get_typed[kind])(c->instance, &vr, 1, &v, 1);
-        memcpy(out, &v, sizeof v);
-        return status;
-    }
-    switch (kind) {
-    case MK_INTEGER: {
-        int32_t v = 0;
-        status = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, &vr, 1, &v, 1)
-                             : ((fmi2_get_integer *)c->get_integer)(c->instance, &vr, 1, &v);
-        *out = (double)v;
-        break;
-    }
-    case MK_BOOLEAN:
-        if (c->fmi == 3) {
-            bool v = false;
-            status = ((fmi3_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v, 1);
-            *out = v ? 1.0 : 0.0;
-        } else {
-            int32_t v = 0;
-            status = ((fmi2_get_boolean *)c->get_boolean)(c->instance, &vr, 1, &v);
-            *out = v ? 1.0 : 0.0;
-        }
-        break;
-    default:
-        status = get_typed(c, kind, &vr, 1, out, 1, NULL, NULL);
-    }
+ * or UInt64 stored as such is exact whatever its magnitude; *call says which call it was. */
+static int get_scalar(const mk_component *c, int32_t kind, int32_t how, uint32_t vr, double *out, int32_t *call) {
+    if (how == MK_STORE_DOUBLE) return get_kind(c, kind, &vr, 1, out, 1, call, NULL, NULL);
+    typedef int get_t(void *, const uint32_t *, size_t, void *, size_t); /* the bits, through its own call */
+    uint64_t v = 0;
+    *call = TYPED_CALL(MK_CALL_GET_TYPED, kind);
+    int status = ((get_t *)c->get_typed[kind])(c->instance, &vr, 1, &v, 1);
+    memcpy(out, &v, sizeof v);
     return status;
 }
 
@@ -766,15 +740,10 @@ static int32_t check_sample(mk_kernel *k, int32_t ci, const double *row, int64_t
 
 /* Before component ci fills its inputs of macro step n: its sources' samples exist. */
 static int32_t wait_inputs(mk_kernel *k, const mk_component *c, int64_t n) {
-    for (int32_t l = 0; l < c->n_links; l++) {
-        const mk_link *lk = &c->links[l];
+    for (int32_t l = 0; l < c->n_links + c->n_string_links; l++) {
+        const mk_link *lk = l < c->n_links ? &c->links[l] : &c->string_links[l - c->n_links];
         /* a source that goes first: its sample at the macro step's end as stepped (resampling it
          * needs this component's own step) */
-        mk_counter *ready = lk->ahead ? &k->shared->stepped[lk->source] : &k->shared->published[lk->source];
-        if (wait_for(k, ready, n + lk->ahead)) return aborted(k);
-    }
-    for (int32_t l = 0; l < c->n_string_links; l++) {
-        const mk_link *lk = &c->string_links[l];
         mk_counter *ready = lk->ahead ? &k->shared->stepped[lk->source] : &k->shared->published[lk->source];
         if (wait_for(k, ready, n + lk->ahead)) return aborted(k);
     }
@@ -1050,22 +1019,19 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         }
         int64_t t0 = now_ns();
         uint64_t length = 0;
+        int32_t call = 0;
         int st;
         mark_busy(k, rec->component);
         if (rec->kind == MK_RECORD_STRING || rec->kind == MK_RECORD_BINARY) {
             row[rec->column] = 0.0; /* Python's to fill: the value's place in the results */
             char *to = k->texts + (slot * (size_t)k->n_texts + (size_t)rec->text) * MK_STRING_SLOT;
+            call = rec->kind == MK_RECORD_STRING ? MK_CALL_GET_STRING : MK_CALL_GET_BINARY;
             st = get_texts(c, rec->kind, &rec->index, 1, to, &length);
         } else
-            st = get_scalar(c, rec->kind, rec->store, rec->index, &row[rec->column]);
+            st = get_scalar(c, rec->kind, rec->store, rec->index, &row[rec->column], &call);
         mark_idle(k);
         c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         if (st > STATUS_OK || st < 0) {
-            int32_t call = rec->kind == MK_INTEGER         ? MK_CALL_GET_INTEGER
-                           : rec->kind == MK_BOOLEAN       ? MK_CALL_GET_BOOLEAN
-                           : rec->kind == MK_RECORD_STRING ? MK_CALL_GET_STRING
-                           : rec->kind == MK_RECORD_BINARY ? MK_CALL_GET_BINARY
-                                                           : TYPED_CALL(MK_CALL_GET_TYPED, rec->kind);
             fail(k, st < 0 ? MK_TOO_LONG : MK_FMI_ERROR, rec->component, call, st < 0 ? 0 : st, (n + 1) * c->ratio);
             k->error.variable = r;
             k->error.integer = length;

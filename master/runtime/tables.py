@@ -110,6 +110,13 @@ def _function(fmu: Fmu, slot: str) -> int | None:
     return None if name is None else _exported(fmu, name)
 
 
+def _require(fmu: Fmu, slot: str, component: str) -> None:
+    """FmuError unless the FMU exports the function of kernel slot `slot`."""
+    if _function(fmu, slot) is None:
+        name = FMI_FUNCTIONS[slot][1 if fmu.fmi3 else 0]
+        raise FmuError(f"{component}: {fmu.path.name} does not export {name}")
+
+
 def _exported(fmu: Fmu, name: str) -> int | None:
     try:
         return C.cast(fmu.slave.dll[name], C.c_void_p).value
@@ -292,8 +299,7 @@ class CompiledPlan:
             c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
             c.set_typed[kind] = _exported(fmu, f"fmi3Set{name}")
         for slot in ("do_step", "set_real", "get_real"):
-            if getattr(c, slot) is None:
-                raise FmuError(f"{pc.name}: {fmu.path.name} does not export {FMI_FUNCTIONS[slot][c.fmi - 2]}")
+            _require(fmu, slot, pc.name)
         self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
@@ -444,8 +450,9 @@ class CompiledPlan:
         )
 
     def _string_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu, links: list[Link]) -> None:
-        """A component's String connections (kernel.h): its coupled String outputs (their ring is
-        set in `_component`), its String inputs and the held links into them, of one term."""
+        """A component's String and Binary connections (kernel.h): its coupled text outputs (their
+        ring is set in `_component`), its text inputs (Strings first) and the held links into
+        them, of one term."""
         texts = string_output_names(self.plan, pc.name)
         links = sorted(links, key=lambda lk: TEXTS.index(lk.kind))  # Strings first (kernel.h)
         inputs = [i for lk in links for i in lk.inputs]
@@ -453,11 +460,11 @@ class CompiledPlan:
             return
         binary_in = [i for lk in links if lk.kind == "Binary" for i in lk.inputs]
         binary_out = set(texts) & _binaries(self.plan, pc.name)
-        for kind, out, into in (("String", set(texts) - binary_out, set(inputs) - set(binary_in)),
-                                ("Binary", binary_out, binary_in)):  # fmt: skip
-            for verb, used in (("Get", out), ("Set", into)):
-                if used and getattr(c, f"{verb.lower()}_{kind.lower()}") is None:  # set with the others
-                    raise FmuError(f"{pc.name}: {fmu.path.name} does not export fmi{c.fmi}{verb}{kind}")
+        needed = {"get_string": len(texts) > len(binary_out), "get_binary": binary_out,
+                  "set_string": len(inputs) > len(binary_in), "set_binary": binary_in}  # fmt: skip
+        for slot, used in needed.items():
+            if used:
+                _require(fmu, slot, pc.name)
         c.out_string_vrs = _ptr(self._array([fmu.variables[o].vr for o in texts], np.uint32), C.c_uint32)
         c.n_in_binary = len(binary_in)
         c.n_in_string = len(inputs) - len(binary_in)
@@ -509,11 +516,9 @@ class CompiledPlan:
         if var in self.outs[comp]:  # a sample in the history (every element of an FMI 3 array is)
             return native.Record(column, i, native.REAL_SAMPLE, self.outs[comp].index(var), store)
         typed = "Int64" if v.fmi_type == "Enumeration" else v.fmi_type
-        if v.type in ("String", "Binary"):
+        if v.type in TEXTS:
+            _require(fmu, f"get_{v.type.lower()}", comp)
             kind = native.RECORD_STRING if v.type == "String" else native.RECORD_BINARY
-            for slot, name in ((f"get_{v.type.lower()}", f"fmi{2 + fmu.fmi3}Get{v.type}"),):
-                if _function(fmu, slot) is None:
-                    raise FmuError(f"{comp}: {fmu.path.name} does not export {name}")
             return native.Record(column, i, kind, v.vr, store, text)
         if fmu.fmi3 and typed in native.TYPED:
             kind = native.TYPED[typed]

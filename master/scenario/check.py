@@ -15,20 +15,16 @@ from fractions import Fraction
 
 from . import fmuinfo
 from .fmuinfo import (
-    RECORDED,
     FmuInfo,
     SourceError,
     Var,
     connection_problem,
-    declared_range,
     direction_problems,
-    element_names,
     lookup,
     no_element,
-    range_problem,
-    recordable,
+    point_problem,
+    record_problem,
     stimulus_problem,
-    stimulus_value_problem,
     typed,
 )
 from .model import Scenario
@@ -211,17 +207,10 @@ def _stimuli(sc: Scenario, infos: Infos, driven: dict[tuple[str, str], str], at:
         if problem:
             at(where, f"{name} is {typed(var.type, var.shape)}: {problem}")
             continue
-        bounds = declared_range(var.type, var.min, var.max, var.items)
         for t, v in zip(s.times, s.values, strict=False):
-            if not math.isfinite(v):
-                continue
-            wrong = stimulus_value_problem(var.type, version, v)
-            outside = range_problem(v, bounds)
-            if wrong:
-                at(where, f"value {v:g} is {wrong} ({name} is {var.type})")
-            elif outside:  # the FMU would refuse it in the run
-                whose = "its items" if var.min is None and var.max is None else "its min and max"
-                at(where, f"value {v:g} at time {t:g} s is {outside}, the range of {name} ({whose})")
+            problem = point_problem(name, var, version, t, v) if math.isfinite(v) else None
+            if problem:
+                at(where, problem)
 
 
 def _record(sc: Scenario, infos: Infos, at: At) -> None:
@@ -242,11 +231,6 @@ def _record(sc: Scenario, infos: Infos, at: At) -> None:
             )
             at(where, f"unknown variable: {unknown}")
             continue
-        var, position = found
-        names = element_names(var.name, var.shape) if position is None else [name]
-        if not recordable(var.type, info.fmi_version, var.shape):
-            at(where, f"{comp}.{name} is {var.type}: the runtime records {RECORDED}")
-        elif columns & {(comp, n) for n in names}:
-            at(where, "recorded twice")
-        else:
-            columns.update((comp, n) for n in names)
+        problem = record_problem(comp, name, *found, info.fmi_version, columns)
+        if problem:
+            at(where, problem)

@@ -220,6 +220,20 @@ def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str
     return None if low <= value <= high else f"outside [{low}, {high}]"
 
 
+def point_problem(name: str, var: Var, fmi_version: str, t: float, v: float) -> str | None:
+    """Why a stimulus cannot hold value v from time t (s) on input `name` (variable `var`): not of
+    its type (`stimulus_value_problem`), or outside the range it declares, which the FMU would
+    refuse in the run; None if it can."""
+    wrong = stimulus_value_problem(var.type, fmi_version, v)
+    if wrong:
+        return f"value {v:g} is {wrong} ({name} is {var.type})"
+    outside = range_problem(v, declared_range(var.type, var.min, var.max, var.items))
+    if outside:
+        whose = "its items" if var.min is None and var.max is None else "its min and max"
+        return f"value {v:g} at time {t:g} s is {outside}, the range of {name} ({whose})"
+    return None
+
+
 def declared_range(fmi_type: str, low: str | None, high: str | None, items=()) -> tuple[float, float] | None:
     """[min, max] a variable declares (its own or its declared type's min and max; an Enumeration
     without them: its lowest and highest item), None if it declares neither bound. The FMU
@@ -268,6 +282,21 @@ def recordable(fmi_type: str, fmi_version: str, shape: tuple[int, ...] = ()) -> 
     call, and Binary; Strings and Binaries of at most 1023 bytes, scalars only)."""
     kind = coupling_kind(fmi_type, fmi_version)
     return kind is not None and not (shape and kind in TEXTS)
+
+
+def record_problem(
+    comp: str, name: str, var: Var, position: int | None, fmi_version: str, columns: set[tuple[str, str]]
+) -> str | None:
+    """Why `comp`.`name` (variable `var`, or its element at `position`) cannot be recorded beside
+    the `columns` (component, variable or array element) recorded so far, which it joins if it
+    can; None then."""
+    names = element_names(var.name, var.shape) if position is None else [name]
+    if not recordable(var.type, fmi_version, var.shape):
+        return f"{comp}.{name} is {var.type}: the runtime records {RECORDED}"
+    if columns & {(comp, n) for n in names}:
+        return "recorded twice"
+    columns.update((comp, n) for n in names)
+    return None
 
 
 def recorded_as(fmi_type: str) -> str:

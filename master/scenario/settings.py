@@ -19,13 +19,9 @@ from master.schedule import Clock
 from .context import Context
 from .fmuinfo import (
     FLOATS,
-    RECORDED,
-    declared_range,
-    element_names,
-    range_problem,
-    recordable,
+    point_problem,
+    record_problem,
     stimulus_problem,
-    stimulus_value_problem,
     typed,
 )
 from .model import Stimulus
@@ -344,15 +340,11 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
         key = (ve.get("component", ""), ve.get("name", ""))
         found = ctx.element(*key, ve)  # a variable, an array (every element) or one element
         if found is not None:
-            var, position = found
-            names = element_names(var.name, var.shape) if position is None else [key[1]]
-            if not recordable(var.type, ctx.comps[key[0]].info.fmi_version, var.shape):
-                ctx.at(ve, f"{key[0]}.{key[1]} is {var.type}: the runtime records {RECORDED}")
-            elif columns & {(key[0], n) for n in names}:
-                ctx.at(ve, "recorded twice")
+            problem = record_problem(*key, *found, ctx.comps[key[0]].info.fmi_version, columns)
+            if problem:
+                ctx.at(ve, problem)
             else:
                 chosen.append(key)
-                columns.update((key[0], n) for n in names)
     s.record = tuple(chosen)
 
 
@@ -383,7 +375,6 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
         if problem:
             ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.type, var.shape)}: {problem}")
             ok = False
-        bounds = declared_range(var.type, var.min, var.max, var.items)
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
             ok = False
@@ -402,16 +393,9 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             if times and t <= times[-1]:
                 ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
                 ok = False
-            wrong = stimulus_value_problem(var.type, version, v)
-            outside = range_problem(v, bounds)
-            if wrong:
-                ctx.at(pe, f"value {v:g} is {wrong} ({key[0]}.{key[1]} is {var.type})")
-                ok = False
-            elif outside:  # the FMU would refuse it in the run
-                whose = "its items" if var.min is None and var.max is None else "its min and max"
-                ctx.at(
-                    pe, f"value {v:g} at time {t:g} s is {outside}, the range of {key[0]}.{key[1]} ({whose})"
-                )
+            problem = point_problem(f"{key[0]}.{key[1]}", var, version, t, v)
+            if problem:
+                ctx.at(pe, problem)
                 ok = False
             times.append(t)
             values.append(v)
