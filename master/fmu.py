@@ -478,57 +478,44 @@ class Fmu:
         """An FMI 3 array through one call of its type: the elements given (position in row-major
         order -> value), the others at their start values."""
         kind = _fmi3_kind(v)
+        if kind in ("String", "Binary"):
+            raise FmuError(f"{self.name}.{v.name}: arrays of type {v.fmi_type} are not supported")
         starts = (v.start or "").split()
         if len(starts) != v.size:
             raise FmuError(f"{self.name}.{v.name}: {len(starts)} start values for {v.size} elements")
-        if kind in ("Float64", "Float32"):
-            values = [float(x) for x in starts]
-        elif kind in FMI3_INTEGERS:
-            values = [int(x) for x in starts]
-        elif kind == "Boolean":
-            values = [x.lower() in ("true", "1") for x in starts]
-        else:
-            raise FmuError(f"{self.name}.{v.name}: arrays of type {v.fmi_type} are not supported")
+        values = [self._converted(v, kind, x) for x in starts]
         for position, value in elements.items():
-            if kind == "Boolean":
-                if isinstance(value, str):
-                    value = value.lower() in ("true", "1")
-                values[position] = bool(value)
-            elif kind in FMI3_INTEGERS:
-                if isinstance(value, float) and not value.is_integer():
-                    raise FmuError(f"{self.name}.{v.name}: {value!r} is not an integer")
-                values[position] = int(value)  # type: ignore[arg-type]
-            else:
-                values[position] = float(value)  # type: ignore[arg-type]
+            values[position] = self._converted(v, kind, value)
         getattr(self.slave, f"set{kind}")([v.vr], values)
 
     def _set_one(self, v: VariableInfo, value: object) -> None:
         """One value through the call of the variable's own type (FMI 3: Float32, Int8 ... UInt64,
         Enumeration as Int64 too, Binary through fmi3SetBinary)."""
-        s = self.slave
         kind = _fmi3_kind(v) if self.fmi3 else v.type
+        x = self._converted(v, kind, value)
+        name = "Integer" if kind == "Enumeration" else kind  # (in FMI 3 _fmi3_kind says Int64)
+        getattr(self.slave, f"set{name}")([v.vr], [x])
+
+    def _converted(self, v: VariableInfo, kind: str, value: object) -> object:
+        """`value` (a number, a bool, text from a start attribute or a binding, bytes) as the set
+        call of `kind` takes it; FmuError if it is not one."""
         if kind in ("Real", "Float64", "Float32"):
-            x = float(value)  # type: ignore[arg-type]
-            (getattr(s, f"set{kind}") if self.fmi3 else s.setReal)([v.vr], [x])
-        elif kind in ("Integer", "Enumeration") or kind in FMI3_INTEGERS:
+            return float(value)  # type: ignore[arg-type]
+        if kind in ("Integer", "Enumeration") or kind in FMI3_INTEGERS:
             if isinstance(value, float) and not value.is_integer():
                 raise FmuError(f"{self.name}.{v.name}: {value!r} is not an integer")
-            x = int(value)  # type: ignore[arg-type]
-            (getattr(s, f"set{kind}") if self.fmi3 else s.setInteger)([v.vr], [x])
-        elif kind == "Boolean":
-            if isinstance(value, str):
-                if value.lower() not in ("true", "false", "1", "0"):
-                    raise FmuError(f"{self.name}.{v.name}: {value!r} is not a Boolean")
-                value = value.lower() in ("true", "1")
-            s.setBoolean([v.vr], [bool(value)])
-        elif kind == "String":
-            s.setString([v.vr], [str(value)])
-        elif kind == "Binary":
-            s.setBinary([v.vr], [self._bytes(v, value)])
-        else:
-            raise FmuError(
-                f"{self.name}.{v.name}: variables of type {v.fmi_type or v.type} are not supported"
-            )
+            return int(value)  # type: ignore[arg-type]
+        if kind == "Boolean":
+            if not isinstance(value, str):
+                return bool(value)
+            if value.lower() not in ("true", "false", "1", "0"):
+                raise FmuError(f"{self.name}.{v.name}: {value!r} is not a Boolean")
+            return value.lower() in ("true", "1")
+        if kind == "String":
+            return str(value)
+        if kind == "Binary":
+            return self._bytes(v, value)
+        raise FmuError(f"{self.name}.{v.name}: variables of type {v.fmi_type or v.type} are not supported")
 
     def _bytes(self, v: VariableInfo, value: object) -> bytes:
         """A Binary value: bytes as they are, text as hex digits (a Scenario built in Python, or
