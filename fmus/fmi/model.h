@@ -120,7 +120,7 @@ typedef struct {
 
     /* dx = f(t, x).  Inputs in the real slots already hold their values at time t
      * (the layer evaluates input polynomials before the call).  Must not write
-     * state slots; may write locals (e.g. warm starts). */
+     * state slots; may write locals (e.g. warm starts).  NULL: a model without states. */
     ModelStatus (*derivatives)(Instance *inst, double t, const double *x, double *dx);
 
     /* J = df/dx at (t, x), row major n_states x n_states.  NULL: finite differences. */

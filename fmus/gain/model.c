@@ -13,14 +13,6 @@ static const Variable VARIABLES[N_VARIABLES] = {
      NO_STATE, "3"},
 };
 
-static ModelStatus derivatives(Instance *inst, double t, const double *x, double *dx) {
-    (void)inst;
-    (void)t;
-    (void)x;
-    (void)dx;
-    return MODEL_OK;
-}
-
 static ModelStatus outputs(Instance *inst, double t, const double *x) {
     (void)t;
     (void)x;
@@ -43,7 +35,7 @@ const ModelDef MODEL = {
     .state_slots = NULL,
     .derivative_slots = NULL,
     .initialize = NULL,
-    .derivatives = derivatives,
+    .derivatives = NULL,
     .jacobian = NULL,
     .outputs = outputs,
 };
