@@ -59,18 +59,17 @@ def test_integer_and_boolean_signals_are_held_and_drive_the_equations(ratio_b, c
         assert np.array_equal(d[col], np.floor(np.where(col == "a.n", d["a.x"], d["b.x"]) / 0.25))
     assert {float(d["a.on"][-1]), float(d["b.on"][-1])} != {float(d["a.on"][0]), float(d["b.on"][0])}
     assert len(np.unique(d["a.n"])) > 1 and len(np.unique(d["b.n"])) > 1  # discrete events happen
-    # held: the input in the step ending at row i is the producer's sample at its start (Jacobi) or
-    # at its end (Gauss-Seidel, a before b)
-    lag = 0 if coupling == "gauss-seidel" else 1
+    # recorded inputs: the producer's sample at the row's time (resampling), whatever the coupling
     for src, dst in (("a", "b"), ("b", "a")):
-        shift = lag if (src, dst) == ("a", "b") else 1
-        assert np.array_equal(d[f"{dst}.n_in"][1:], d[f"{src}.n"][1 - shift : len(d) - shift])
-        assert np.array_equal(d[f"{dst}.on_in"][1:], d[f"{src}.on"][1 - shift : len(d) - shift])
-    # the equations saw exactly those values: Euler steps recomputed here from the recorded inputs
+        assert np.array_equal(d[f"{dst}.n_in"], d[f"{src}.n"])
+        assert np.array_equal(d[f"{dst}.on_in"], d[f"{src}.on"])
+    # held: the step ending at row i saw the producer's sample at its start (Jacobi) or at its end
+    # (Gauss-Seidel, a before b): Euler steps recomputed here from the recorded inputs
     for comp, rate, k in (("a", 1.0, 1), ("b", 0.5, ratio_b)):
+        lag = 0 if coupling == "gauss-seidel" and comp == "b" else 1
         for i in range(1, len(d)):
-            x = euler(d[f"{comp}.x"][i - 1], int(d[f"{comp}.n_in"][i]), bool(d[f"{comp}.on_in"][i]), rate,
-                      float(H) / k, k)  # fmt: skip
+            n_in, on_in = int(d[f"{comp}.n_in"][i - lag]), bool(d[f"{comp}.on_in"][i - lag])
+            x = euler(d[f"{comp}.x"][i - 1], n_in, on_in, rate, float(H) / k, k)
             assert d[f"{comp}.x"][i] == pytest.approx(x, rel=1e-13, abs=1e-15)
 
 

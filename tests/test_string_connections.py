@@ -85,18 +85,19 @@ def source_samples(k: int) -> list[bytes]:
 
 def consumer_samples(source: list[bytes], ks: int, kc: int, ahead, rule) -> list[bytes]:
     """A consumer's String output at its communication points: `rule` of the held input of the
-    step ending there (the initial sweep: of the source's sample 0). ahead(n): whether the source
-    is ahead in macro step n."""
+    step ending there, but at a macro step's end of the source's sample there, set again before the
+    output is read again (resampling: the output depends on the input); the initial sweep: of the
+    source's sample 0. ahead(n): whether the source is ahead in macro step n."""
     out = [rule(source[0])]
     for n in range(N):
-        out += [rule(source[held(n, m, ks, kc, ahead(n))]) for m in range(kc)]
+        out += [rule(source[held(n, m, ks, kc, ahead(n))]) for m in range(kc - 1)]
+        out.append(rule(source[(n + 1) * ks]))
     return out
 
 
-def row_inputs(source: list[bytes], ks: int, kc: int, ahead) -> list[bytes]:
-    """A consumer's String input at each row: the one of its last step in the macro step (row 0:
-    the initial sweep's, the source's sample 0)."""
-    return [source[0]] + [source[held(n, kc - 1, ks, kc, ahead(n))] for n in range(N)]
+def row_inputs(source: list[bytes], ks: int) -> list[bytes]:
+    """A consumer's String input at each row: the source's sample at the row's time (resampling)."""
+    return [source[n * ks] for n in range(N + 1)]
 
 
 def check_rows(d: np.ndarray, component: str, inputs: list[bytes]) -> None:
@@ -136,11 +137,10 @@ def test_fmi2_strings_are_held_along_a_chain(coupling, ka, kb, kc):
 
     a = source_samples(ka)
     b = consumer_samples(a, ka, kb, ahead, lambda u: text_rule(u, 1, "é".encode()))
-    check_rows(d, "b", row_inputs(a, ka, kb, ahead))
-    check_rows(d, "c", row_inputs(b, kb, kc, ahead))
-    assert {len(u) for u in row_inputs(b, kb, kc, ahead)} == {3, 5, 7, 9}  # a's 1, 3, 5 or 7 bytes, é
-    if coupling == "jacobi":  # held through all of b's steps: a's sample at the macro step's start
-        assert list(d["b.y_length"][1:]) == [len(a[n * ka]) for n in range(N)]
+    check_rows(d, "b", row_inputs(a, ka))
+    check_rows(d, "c", row_inputs(b, kb))
+    assert {len(u) for u in row_inputs(b, kb)} == {3, 5, 7, 9}  # a's 1, 3, 5 or 7 bytes, é
+    assert list(d["b.y_length"]) == [len(a[n * ka]) for n in range(N + 1)]  # a's sample at the row
 
 
 @pytest.mark.parametrize("fmi", [3, 2])
@@ -160,15 +160,15 @@ def test_fmi3_strings_and_across_versions(fmi, coupling):
 
     a = source_samples(1)
     b = consumer_samples(a, 1, 3, ahead, alltypes_rule)
-    check_rows(d, "c", row_inputs(b, 3, 1, ahead))
+    check_rows(d, "c", row_inputs(b, 3))
     assert set(d["c.y_length"]) == {2, 4, 6, 8}  # a's 1, 3, 5 or 7 bytes and "!"
 
 
 def test_a_resampled_consumer_sets_its_string_inputs_again_and_keeps_its_string_outputs():
-    """Resampling (kernel.h): b's recorded Real output y depends on its input u, so after each
-    macro step b's linked inputs are set again to a's samples at its end, the String input too (as
-    an Integer one), while b's String output is not read again: c, which b's String drives, holds
-    b's sample as stepped. b extrapolates u with order 2, so the first macro steps are repeated
+    """Resampling (kernel.h): b's outputs depend on its inputs, so after each macro step b's linked
+    inputs are set again to a's samples at its end, the String input too (as an Integer one), and
+    its outputs are read again, the String one too: c, which b's String drives, gets b's sample of
+    a's sample at the macro step's end. b extrapolates u with order 2, so the first macro steps are repeated
     (start-up sweeps, in which a counts as ahead and the previous sweep's String samples are read)."""
     fmu = text()
     comps = (Component("a", fmu, dict(A)), Component("b", fmu, {"suffix": "é"}, 2, 2), Component("c", fmu))
@@ -186,8 +186,8 @@ def test_a_resampled_consumer_sets_its_string_inputs_again_and_keeps_its_string_
     a = source_samples(1)
     b = consumer_samples(a, 1, 2, ahead, lambda u: text_rule(u, 1, "é".encode()))
     check_rows(d, "b", a[: N + 1])  # set again: a's sample at the row, not the held one
-    check_rows(d, "c", row_inputs(b, 2, 1, ahead))
-    stepped = row_inputs(a, 1, 2, ahead)  # what b's last step was given
+    check_rows(d, "c", row_inputs(b, 2))
+    stepped = [a[0]] + [a[held(n, 1, 1, 2, ahead(n))] for n in range(N)]  # what b's last step was given
     assert sum(u != v for u, v in zip(stepped, a, strict=False)) == 3  # a changed inside 3 macro steps
     assert np.array_equal(d["b.y"], d["time"] / 2.0)  # read again: a.y = a.u at the row
 

@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers import BACKENDS, run_everywhere, ssd
-from test_string_connections import held
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -51,28 +50,18 @@ def binary_scene(coupling: str, ka: int, kb: int, record) -> Scenario:
 @pytest.mark.parametrize("coupling, ka, kb", [("jacobi", 1, 3), ("jacobi", 3, 1), ("gauss-seidel", 3, 2)])
 def test_a_binary_is_held_along_a_connection_and_recorded_with_every_byte(coupling, ka, kb):
     """a.stamp -> b.u_binary, multirate: b's step m of macro step n sets the held sample (the
-    first at or after the step's end that a has produced); b.y_binary, read at each row, is the
-    held input of b's last step reversed. Every backend gives the same bytes."""
-    sc = binary_scene(coupling, ka, kb, [("a", "stamp"), ("b", "y_binary")])
-    plan = api.plan(sc)
-    assert [(lk.kind, lk.order) for lk in plan.links] == [("Binary", 0)]
-    assert plan.column_types == {"a.stamp": "Binary", "b.y_binary": "Binary"}
-    d = run_everywhere(sc)
-    source = [stamp(j * H / ka) for j in range(N * ka + 1)]
-    ahead = coupling == "gauss-seidel"
-    inputs = [source[0]] + [source[held(n, kb - 1, ka, kb, ahead)] for n in range(N)]
-    assert list(d["a.stamp"]) == [stamp(n * H) for n in range(N + 1)]
-    assert list(d["b.y_binary"]) == [u[::-1] for u in inputs]
-    assert {len(u) for u in d["b.y_binary"]} == {2, 3, 4} and all(u[0] == 0 for u in d["b.y_binary"])
-
-
-def test_a_resampled_consumer_records_the_binary_of_its_input_at_the_row_time():
-    """With a Real output of b recorded, b is resampled after each macro step (kernel.h): its
-    inputs, the Binary too, are set again to a's samples at the macro step's end before the row
-    is read, so b.y_binary at t is a.stamp at t reversed: no recorded value lags its time."""
-    sc = binary_scene("jacobi", 1, 3, [("a", "stamp"), ("b", "y_binary"), ("b", "y_float64")])
-    d = run_everywhere(sc)
-    assert list(d["b.y_binary"]) == [stamp(n * H)[::-1] for n in range(N + 1)]
+    first at or after the step's end that a has produced); after each macro step b's Binary input
+    is set again to a's sample at its end before b.y_binary is read again (resampling), so b.y_binary
+    at t is a.stamp at t reversed, whatever else is recorded. Every backend gives the same bytes."""
+    for extra in ([], [("b", "y_float64")]):
+        sc = binary_scene(coupling, ka, kb, [("a", "stamp"), ("b", "y_binary"), *extra])
+        plan = api.plan(sc)
+        assert [(lk.kind, lk.order) for lk in plan.links] == [("Binary", 0)]
+        d = run_everywhere(sc)
+        assert list(d["a.stamp"]) == [stamp(n * H) for n in range(N + 1)]
+        assert list(d["b.y_binary"]) == [stamp(n * H)[::-1] for n in range(N + 1)]
+        assert {len(u) for u in d["b.y_binary"]} == {2, 3, 4} and all(u[0] == 0 for u in d["b.y_binary"])
+        assert plan.column_types["a.stamp"] == plan.column_types["b.y_binary"] == "Binary"
 
 
 def test_binary_and_string_columns_in_the_csv_file_and_back(tmp_path: Path):
@@ -149,7 +138,7 @@ def test_validate_and_run_accept_binary_connections_in_a_scenario_file(tmp_path:
     run = subprocess.run([sys.executable, "-m", "master", "run", str(path), "-o", str(out), "-q"],
                          capture_output=True, text=True, timeout=120)  # fmt: skip
     assert run.returncode == 0, run.stderr
-    assert out.read_text().splitlines()[-1] == '0.5,"000404"'  # b holds a's stamp at 0.4 (Jacobi)
+    assert out.read_text().splitlines()[-1] == '0.5,"00050505"'  # a's stamp at 0.5 reversed
 
 
 def test_every_scalar_type_is_recordable_and_arrays_of_numbers_and_booleans():

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import BACKENDS, lagrange, run_everywhere, ssd
+from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -91,9 +91,7 @@ def alltypes() -> Path:
 
 def chain(coupling: str, ka: int, kb: int) -> Scenario:
     """a -> b, every type of a's outputs driving the same type of b's inputs; b extrapolates its
-    continuous inputs with order 2. b records no output that depends on inputs and is read at
-    communication points (none of its Float64 outputs), so it is not resampled and each recorded
-    input of b is what b was given for its last step of the macro step."""
+    continuous inputs with order 2 and records its inputs and outputs (Float64 ones aside)."""
     fmu = alltypes()
     comps = (Component("a", fmu, dict(P_A), ka, 0), Component("b", fmu, dict(P_B), kb, 2))
     conns = tuple(Connection("a", f"y_{t}", "b", f"u_{t}") for t in TYPES)
@@ -124,45 +122,12 @@ def test_every_numeric_type_drives_its_own_type(coupling, ka, kb):
     for t in TYPES:
         assert [float(v) for v in a[t][::ka]] == list(d[f"a.y_{t}"]), t
 
-    extrapolated = 0
-    for row in range(N + 1):
-        n = row - 1  # the macro step that ends at this row
-        for t in TYPES:
-            if row == 0:  # initial sweep: b's inputs are a's outputs at the start time
-                value = Fraction(a[t][0])
-            else:
-                # b's last step of macro step n: the polynomial through a's samples up to t_n
-                # (Jacobi), or up to t_n+1 (a steps first; and in the relaxed start-up sweeps), at
-                # the step's end, the row's time (b's outputs depend on its inputs: the step-end
-                # inputs are set after the step, and the row reads them)
-                ahead = coupling == "gauss-seidel" or n < plan.startup_steps
-                j_end = (n + 1) * ka if ahead else n * ka
-                p = min(2, j_end) if t in CONTINUOUS else 0  # discrete signals are held: order 0
-                tau = (n + 1) * H
-                value = lagrange([(times[j], Fraction(a[t][j])) for j in range(j_end - p, j_end + 1)], tau)
-                extrapolated += t == "float32" and tau not in times[j_end - p : j_end + 1]
-            got = d[f"b.u_{t}"][row]
-            if t == "float32":  # set with fmi3SetFloat32: the polynomial rounded to float
-                given = float(np.float32(float(value)))
-                assert got == given, (row, float(value), got)
-            elif t == "float64":
-                given = float(value)
-                assert got == pytest.approx(given, rel=1e-13, abs=1e-13), row
-            else:
-                given = int(value)
-                assert got == given, (t, row)
-            if t != "float64":
-                assert d[f"b.y_{t}"][row] == rule(t, given, P_B.get(f"p_{t}")), (t, row)
-    if coupling == "jacobi":  # the rows' times lie beyond a's samples: extrapolated values
-        assert extrapolated > N // 2
-
-    # held between communication points: in Jacobi b's inputs keep a's sample at the macro step's
-    # start through all its steps, however a changes meanwhile
-    if coupling == "jacobi":
-        for t in TYPES:
-            if t not in CONTINUOUS:
-                assert np.array_equal(d[f"b.u_{t}"][plan.startup_steps + 1 :],
-                                      d[f"a.y_{t}"][plan.startup_steps : -1]), t  # fmt: skip
+    # b's inputs at each row: a's sample at the row's time, set again through each type's own call
+    # before b's outputs are read (resampling: recorded inputs and outputs that depend on them)
+    for t in TYPES:
+        assert list(d[f"b.u_{t}"]) == list(d[f"a.y_{t}"]), t
+        if t != "float64":
+            assert list(d[f"b.y_{t}"]) == [rule(t, u, P_B.get(f"p_{t}")) for u in d[f"a.y_{t}"]], t
     # 64-bit integers near 2^53 travel exactly (odd values: a float32 or a rounding would lose them)
     assert EXACT - 1 in d["b.u_uint64"] and EXACT in d["b.y_uint64"]
     assert -EXACT + 1 in d["b.u_int64"] and EXACT - 7 in d["b.u_int64"] and -EXACT in d["b.y_int64"]
@@ -171,11 +136,12 @@ def test_every_numeric_type_drives_its_own_type(coupling, ka, kb):
     assert 2**32 - 1 in d["b.y_uint32"] and {4, 1, 2} <= set(d["b.u_enumeration"])
 
 
-def test_float32_outputs_are_read_again_and_inputs_of_every_kind_set_again_after_a_macro_step():
-    """Resampling (kernel.h): b's coupled Float32 and Float64 outputs depend on inputs, so after
-    each macro step b's linked inputs are set to a's samples at its end (the typed ones with
-    fmi3SetFloat32 / fmi3SetInt16 ...) and those outputs read again (fmi3GetFloat32): no lag. Held
-    outputs (here Int16) keep the sample as stepped, from the held input."""
+def test_outputs_of_every_kind_are_read_again_after_their_inputs_are_set_again():
+    """Resampling (kernel.h): b's coupled outputs depend on inputs, so after each macro step b's
+    linked inputs are set to a's samples at its end (the typed ones with fmi3SetFloat32 /
+    fmi3SetInt16 ...) and its outputs of every kind read again (fmi3GetFloat32, fmi3GetInt16 ...):
+    no lag, for a held Int16 as for an extrapolated Float32. c records its inputs: b's samples at
+    the row's time."""
     fmu = alltypes()
     kinds = ("float32", "float64", "int16", "uint64")
     comps = (Component("a", fmu, dict(P_A)), Component("b", fmu, dict(P_B), 2), Component("c", fmu))
@@ -189,18 +155,11 @@ def test_float32_outputs_are_read_again_and_inputs_of_every_kind_set_again_after
     sc = Scenario(Path("chain3.ssd"), "three", comps, conns, Fraction(0), STOP, H, stimuli=stimuli,
                   record=record)  # fmt: skip
     d = run_everywhere(sc)
-    for t in ("float32", "int16", "uint64"):  # read at the row, after they were set again
+    for t in kinds:
         assert np.array_equal(d[f"b.u_{t}"], d[f"a.y_{t}"]), t  # a's final samples
-    # a recorded Float64 input is read into the history after each step: as given (held)
-    assert np.array_equal(d["b.u_float64"][1:], d["a.y_float64"][:-1])
-    assert list(d["b.y_float32"]) == [rule("float32", u, P_B["p_float32"]) for u in d["a.y_float32"]]
-    assert list(d["b.y_float64"]) == [rule("float64", u, P_B["p_float64"]) for u in d["a.y_float64"]]
-    for t in ("int16", "uint64"):  # held (Jacobi, order 0): stepped with a's sample at the step's start
-        held = [d[f"a.y_{t}"][0]] + list(d[f"a.y_{t}"][:-1])
-        assert list(d[f"b.y_{t}"]) == [rule(t, u, P_B[f"p_{t}"]) for u in held], t
-    for t in kinds:  # c (not resampled: it records no output) holds b's final samples, re-read ones too
-        assert np.array_equal(d[f"c.u_{t}"][1:], d[f"b.y_{t}"][:-1]), t
-    assert len(np.unique(d["b.y_float32"])) > N // 2
+        assert list(d[f"b.y_{t}"]) == [rule(t, u, P_B[f"p_{t}"]) for u in d[f"a.y_{t}"]], t
+        assert np.array_equal(d[f"c.u_{t}"], d[f"b.y_{t}"]), t
+    assert len(np.unique(d["b.y_float32"])) > N // 2 and len(np.unique(d["b.y_int16"])) == 4
 
 
 @pytest.fixture
@@ -279,10 +238,10 @@ def test_fmi2_real_integer_and_boolean_drive_fmi3_float64_int32_and_boolean(fold
         d = api.run(path, backend=backend).data
         t = d["time"]
         assert np.array_equal(d["g.y"], 2.0 * np.interp(t, [0.0, 2.0], [0.0, 1.0]))  # K = 2
-        assert d["a.u_float64"][0] == 0.0 and np.array_equal(d["a.u_float64"][1:], d["g.y"][:-1])  # held
+        assert np.array_equal(d["a.u_float64"], d["g.y"])  # recorded inputs: the source's sample
         assert np.array_equal(d["a.y_float64"], d["g.y"] + 1.5)  # read again at the macro step's end
         assert np.array_equal(d["a.y_int32"], np.where(t >= 0.45, 4.0, 1.0))
-        assert d["d.n_in"][0] == 1.0 and np.array_equal(d["d.n_in"][1:], d["a.y_int32"][:-1])
+        assert np.array_equal(d["d.n_in"], d["a.y_int32"])
         assert set(d["d.on_in"]) == {1.0}
 
 

@@ -814,19 +814,15 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     return MK_DONE;
 }
 
-/* Resample component ci after macro step n (kernel.h): its linked inputs set to the sources'
- * final samples at the macro step's end, its input-dependent Real outputs read again into its
- * own sample there. */
+/* Resample component ci after macro step n (kernel.h): its linked inputs set to the sources' final
+ * samples at the macro step's end, its outputs read again into its own sample there. */
 static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
     mk_shared *sh = k->shared;
-    for (int32_t l = 0; sh && l < c->n_links; l++) {
-        const mk_link *lk = &c->links[l];
-        mk_counter *ready = c->link_final[l] ? &sh->published[lk->source] : &sh->stepped[lk->source];
-        if (wait_for(k, ready, n + 1)) return aborted(k);
+    for (int32_t l = 0; sh && l < c->n_links + c->n_string_links; l++) {
+        const mk_link *lk = l < c->n_links ? &c->links[l] : &c->string_links[l - c->n_links];
+        if (wait_for(k, lk->final ? &sh->published[lk->source] : &sh->stepped[lk->source], n + 1)) return aborted(k);
     }
-    for (int32_t l = 0; sh && l < c->n_string_links; l++) /* text outputs are never read again */
-        if (wait_for(k, &sh->stepped[c->string_links[l].source], n + 1)) return aborted(k);
     const int64_t j = (n + 1) * c->ratio;
     int64_t t0 = now_ns();
     int st = STATUS_OK;
@@ -854,22 +850,18 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const bool strings = lk->slot0 < c->n_in_string; /* a link carries one kind */
         st = set_texts(c, c->in_string_vrs + lk->slot0, to, strings ? lk->n_cols : 0, strings ? 0 : lk->n_cols, &call);
     }
+    if (st > STATUS_OK) {
+        mark_idle(k);
+        return fail(k, MK_FMI_ERROR, ci, call, st, j - 1);
+    }
     double *row = c->hist + (j % c->cap) * c->n_out;
-    const int32_t n64 = c->n_resample - c->n_resample_float32, nvr64 = c->n_resample_vrs - c->n_resample_float32_vrs;
-    if (st <= STATUS_OK && n64) {
-        call = MK_CALL_GET_REAL;
-        st = get_real(c, c->resample_vrs, nvr64, c->scratch, n64);
-    }
-    if (st <= STATUS_OK && c->n_resample_float32) {
-        call = TYPED_CALL(MK_CALL_GET_TYPED, MK_FLOAT32);
-        st = get_typed(c, MK_FLOAT32, c->resample_vrs + nvr64, c->n_resample_float32_vrs, c->scratch + n64,
-                       c->n_resample_float32, NULL, NULL);
-    }
+    int32_t code = MK_DONE;
+    if (c->resample_outputs) code = read_outputs(k, ci, row, j - 1, j);
+    if (code == MK_DONE && c->resample_texts) code = read_strings(k, ci, c->strings, j - 1, j);
     mark_idle(k);
     c->fmu_time += 1e-9 * (double)(now_ns() - t0);
-    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j - 1);
-    for (int32_t i = 0; i < c->n_resample; i++) row[c->resample_cols[i]] = c->scratch[i];
-    return check_sample(k, ci, row, j);
+    if (code != MK_DONE) return code;
+    return c->resample_outputs ? check_sample(k, ci, row, j) : MK_DONE;
 }
 
 /* Component ci through macro step n: its inputs, then its communication steps, outputs into its

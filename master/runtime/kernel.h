@@ -100,6 +100,8 @@ typedef struct {
     int32_t source;
     int32_t k_source;
     int32_t ahead; /* 1: the source completes a macro step before the consumer starts it */
+    int32_t final; /* 1: the source reads these outputs again (resampling): wait for its published
+                      sample, 0: its stepped one */
     int32_t n_cols;
     int32_t slot0;
     const int32_t *columns; /* source history column of each driven input */
@@ -188,20 +190,15 @@ typedef struct {
     const uint8_t *reads;
     const double *bound; /* |output| beyond this has diverged */
     /* Resampling: no output lags its time label. After each macro step (a start-up one after its
-     * last sweep) the linked inputs (held and String ones too) are set again to the sources' final
-     * samples at the macro step's end, and the n_resample Real and Float32 outputs that depend on
-     * inputs (the last n_resample_float32 of them Float32) are read again into that sample, before
-     * it is published (tables.resampling says which components); held (discrete) and String
-     * outputs are not read again. */
+     * last sweep) a component that reads an output of any type depending on its inputs (coupled or
+     * recorded) sets its linked inputs (held and text ones too) again to the sources' final samples
+     * at the macro step's end, then reads its history row again (resample_outputs: a history column
+     * depends on inputs) and its text outputs (resample_texts), before the sample is published;
+     * recorded outputs outside the history are read after it (tables.resampling says which). */
     int32_t resample;
     int32_t resample_always; /* 0: the re-read outputs are recorded, never coupled: only at the
                                 macro steps that record a row */
-    int32_t n_resample, n_resample_float32;
-    int32_t n_resample_vrs, n_resample_float32_vrs; /* their value references (arrays: one each) */
-    const uint32_t *resample_vrs;
-    const int32_t *resample_cols; /* their history columns */
-    const uint8_t *link_final;    /* [n_links] 1: wait for the source's resampled sample (the link
-                                     carries outputs the source reads again), 0: its stepped one */
+    int32_t resample_outputs, resample_texts;
     double *scratch;              /* [n_in] */
     int32_t n_consumers; /* components reading this history (they hold its ring back) */
     const int32_t *consumers;

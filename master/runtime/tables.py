@@ -342,8 +342,7 @@ class CompiledPlan:
         self._string_tables(c, pc, fmu, text_links)
         # an output read at communication points or rows that depends on inputs: the step-end inputs
         # are set after each step (a coupled String or Binary, or a recorded output of any type, too)
-        read = out + string_output_names(plan, pc.name) + [v for c, v in plan.record if c == pc.name]
-        fed = any(variable(fmu, o).name in fmu.feedthrough for o in read)
+        fed = any(variable(fmu, o).name in fmu.feedthrough for o in outputs_read(plan, out, pc.name))
         c.feedthrough = int(bool(in_names) and fed)
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
@@ -392,19 +391,13 @@ class CompiledPlan:
         c.reads = _ptr(self._array(samples_read(plan, pc.name), np.uint8), C.c_uint8)
         self.bound[pc.name] = bound = self._array(np.full(len(out), np.inf), np.float64)
         c.bound = _ptr(bound, C.c_double)
-        again = self.resampled.get(pc.name, [])  # Float64 ones, then Float32 ones (resampling)
-        c.resample, c.n_resample = int(bool(again)), len(again)
-        c.n_resample_float32 = sum(kind_of(o) == "Float32" for o in again)
+        again = self.resampled.get(pc.name, [])  # read outputs that depend on inputs (resampling)
         coupled = {o for lk in plan.links if lk.source == pc.name for o in lk.outputs}
+        c.resample = int(bool(again))
         c.resample_always = int(bool(coupled & set(again)))  # else only where a row is recorded
-        again_vrs = _vrs(fmu, again)
-        c.n_resample_vrs = len(again_vrs)
-        c.n_resample_float32_vrs = len(_vrs(fmu, [o for o in again if kind_of(o) == "Float32"]))
-        c.resample_vrs = _ptr(self._array(again_vrs, np.uint32), C.c_uint32)
-        c.resample_cols = _ptr(self._array([out.index(o) for o in again], np.int32), C.c_int32)
-        final = [int(any(o in self.resampled.get(lk.source, ()) for o in lk.outputs)) for lk in links]
-        c.link_final = _ptr(self._array(final, np.uint8), C.c_uint8)
-        width = max([len(in_names), len(again)] + [len(lk.inputs) for lk in links])
+        c.resample_outputs = int(any(o in out for o in again))
+        c.resample_texts = int(any(o in again for o in string_output_names(plan, pc.name)))
+        width = max([len(in_names)] + [len(lk.inputs) for lk in links])
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
 
     def _calls(self, fmu: Fmu, names: list[str], kinds: list[str | None]):
@@ -437,6 +430,7 @@ class CompiledPlan:
             source=self.names.index(lk.source),
             k_source=lk.k_source,
             ahead=int(lk.source_first),
+            final=int(any(o in self.resampled.get(lk.source, ()) for o in lk.outputs)),
             n_cols=len(lk.inputs),
             slot0=slot0,
             columns=_ptr(self._array([source_columns.index(o) for o in lk.outputs], np.int32), C.c_int32),
@@ -803,15 +797,23 @@ class Memory:
         np.frombuffer(self.buffer, dtype=np.uint8)[::4096].sum()
 
 
+def outputs_read(plan: Plan, history: list[str], name: str) -> list[str]:
+    """Every variable of component `name` that the run reads: its history columns `history`, its
+    coupled text outputs and its recorded variables (an FMI 3 array by its name), once each."""
+    recorded = [v for c, v in plan.record if c == name]
+    return list(dict.fromkeys(history + string_output_names(plan, name) + recorded))
+
+
 def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[str]], list[str]]:
-    """Which outputs each component reads again after a macro step (kernel.h: resample), and the
-    order of those components (a source of re-read outputs before their consumers): every
-    component driven by a link whose Real outputs read at communication points depend on inputs
-    (the model structure; none declared: all do), and its Float32 ones after them (read with
-    fmi3GetFloat32); held outputs (integers, Booleans) are not read again. Its step-end inputs were
-    extrapolated (a link that is not ahead), a source's sample before that source was resampled,
-    or, in start-up sweeps, the previous sweep's; where they were final already, reading again
-    changes nothing."""
+    """Which components resample after a macro step (kernel.h: resample), each with the variables
+    it reads that depend on its linked inputs, and their order (a source of such outputs before their
+    consumers). One rule for every type and whatever is recorded: a component driven by a link
+    resamples where any variable it reads (coupled, recorded or in its history) is an output that
+    depends on inputs by the model structure (none declared: all do) or a linked input (recorded:
+    the source's sample at the row's time, as every peer master records it). Its step-end inputs
+    were extrapolated (a link that is not ahead) or held from the macro step's start, a source's
+    sample before that source was resampled, or, in start-up sweeps, the previous sweep's; where
+    they were final already, reading again changes nothing."""
     from master.fmu import feedthrough_outputs, read_description, variables_of
 
     through: dict[str, list[str]] = {}
@@ -820,9 +822,9 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
             continue
         md = read_description(plan.scenario.component(pc.name).fmu_path)
         depend, variables = feedthrough_outputs(md), variables_of(md)
-        of = {o: lookup(variables, o)[0] for o in outs[pc.name]}  # an array's elements: the array
-        kinds = {o: value_kind(v, md.fmiVersion) for o, v in of.items() if v.name in depend}
-        chosen = [o for kind in CONTINUOUS for o in outs[pc.name] if kinds.get(o) == kind]
+        linked = {lookup(variables, i)[0].name for lk in plan.links_into(pc.name) for i in lk.inputs}
+        read = outputs_read(plan, outs[pc.name], pc.name)
+        chosen = [o for o in read if lookup(variables, o)[0].name in depend | linked]  # y[2]: y's
         if chosen:
             through[pc.name] = chosen
 
