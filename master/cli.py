@@ -128,6 +128,14 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("-o", "--out", metavar="FILE",
                    help="tuned scenario (default: beside the original, NAME.tuned.ssd / .ssp)")  # fmt: skip
 
+    e = sub.add_parser(
+        "examples",
+        help="copy the example scenes into a folder",
+        description="Copy the paper's two scenes and the two-mass oscillator into DIR, each with its files.",
+    )
+    e.add_argument("dir", nargs="?", default="master-examples", metavar="DIR", help="(master-examples)")
+    e.add_argument("--force", action="store_true", help="overwrite files that exist")
+
     b = sub.add_parser("build-fmus", help="build the project's FMUs", add_help=False)
     b.add_argument("args", nargs=argparse.REMAINDER)
 
@@ -297,6 +305,10 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         return _sweep(args, quiet)
     if args.command == "tune":
         return _tune(args, quiet)
+    if args.command == "examples":
+        from master.examples import main as examples_main
+
+        return examples_main(args.dir, args.force)
     if args.command == "validate":
         problems = api.validate(args.scenario)
         for pr in problems:

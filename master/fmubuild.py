@@ -9,7 +9,9 @@ FMI 2.0 (the default) builds ``build/fmus/<name>.fmu`` with the layer's ``fmi2.c
 checked-in ``fmus/<name>/modelDescription.xml`` must equal the generated one.  FMI 3.0
 Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c`` and an FMI 3.0
 description generated at build time (not checked in).  A table that uses FMI 3.0 types or
-arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.
+arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  ``build/fmus`` stands for
+BUILD_DIR: that folder in a checkout, the user's cache for an installed package, or
+$MASTER_FMU_DIR where set (``_build_dir_default``).
 
 Command line::
 
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import os
 import re
@@ -41,19 +44,25 @@ from lxml import etree
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_DIR = PACKAGE_DIR.parent  # a source checkout, if fmus/ is beside the package
 
+_log = logging.getLogger(__name__)
 
 STATES = "states"  # a model table's dependency on every continuous state (model.h)
 
 
-def _cache_dir() -> Path:
-    """Where an installed package builds FMUs: $XDG_CACHE_HOME (or ~/.cache)/multirate-master/fmus."""
+def _build_dir_default() -> Path:
+    """Where FMUs are built: $MASTER_FMU_DIR if set; else a checkout's build/fmus, and for an
+    installed package $XDG_CACHE_HOME (or ~/.cache)/multirate-master/fmus."""
+    if os.environ.get("MASTER_FMU_DIR"):
+        return Path(os.environ["MASTER_FMU_DIR"]).expanduser().absolute()
+    if FMUS_DIR == REPO_DIR / "fmus":
+        return REPO_DIR / "build" / "fmus"
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "multirate-master" / "fmus"
 
 
 # the FMU sources: shipped inside an installed package (setup.py), else the checkout's fmus/
 FMUS_DIR = PACKAGE_DIR / "fmus" if (PACKAGE_DIR / "fmus").is_dir() else REPO_DIR / "fmus"
-BUILD_DIR = REPO_DIR / "build" / "fmus" if FMUS_DIR == REPO_DIR / "fmus" else _cache_dir()
+BUILD_DIR = _build_dir_default()
 FMI_DIR = FMUS_DIR / "fmi"
 SOLVERS_DIR = FMUS_DIR / "solvers"
 
@@ -773,8 +782,10 @@ def build_fmu(name: str, fmi: int = 2) -> Path:
     _check_fmi(fmi)
     model_dir = _model_dir(name)
     xml_path = model_dir / "modelDescription.xml"
-    if sys.stderr.isatty():  # a few seconds of compiling should not look like a hang
-        print(f"building FMU {name} (FMI {fmi}.0) from its C sources ...", file=sys.stderr, flush=True)
+    build_dir = _build_dir(fmi)
+    # a few seconds of compiling should not look like a hang, and the user learns where FMUs go
+    # (the command line shows master's info messages unless -q)
+    _log.info(f"building FMU {name} (FMI {fmi}.0) from its C sources into {build_dir} ...")
     started = time.time()
     desc = describe(name)
     expected = model_description_xml(name, desc, fmi)
@@ -783,7 +794,6 @@ def build_fmu(name: str, fmi: int = 2) -> Path:
         raise FmuBuildError(
             f"{xml_path}: {state}; regenerate it with: python -m master.fmubuild --write-xml {name}"
         )
-    build_dir = _build_dir(fmi)
     build_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=build_dir) as tmp:
         stage = Path(tmp) / "fmu"
