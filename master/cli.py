@@ -252,8 +252,17 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _default_output(scenario: str) -> Path:
-    """results/<scenario name>-<date>-<time>.csv: a run without -o still keeps what it computed."""
-    return Path("results") / f"{Path(scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
+    """results/<scene>-<date>-<time>.csv: a run without -o still keeps what it computed."""
+    return Path("results") / f"{scene_stem(scenario)}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
+
+
+def scene_stem(scenario: str) -> str:
+    """How the files made from a scenario file are named: its stem (an .ssp: the archive's), but
+    for the generic SystemStructure.ssd the name of its folder (models/hydraulic-manipulator/)."""
+    path = Path(scenario)
+    if path.name == "SystemStructure.ssd" and path.resolve().parent.name:
+        return path.resolve().parent.name
+    return path.stem
 
 
 def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
@@ -379,7 +388,7 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
 def _sweep(args: argparse.Namespace, quiet: bool) -> int:
     from master.sweeps import sweep
 
-    out = Path(args.out) if args.out else Path("results") / f"sweep-{Path(args.scenario).stem}"
+    out = Path(args.out) if args.out else Path("results") / f"sweep-{scene_stem(args.scenario)}"
     try:
         result = sweep(
             args.scenario,
