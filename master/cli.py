@@ -338,12 +338,14 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             if text:
                 raise api.UsageError(f"{csv}: column {text[0]!r} holds text, not numbers to plot")
         png = Path(args.output) if args.output else csv.with_suffix(".png")
-        units = None
-        try:  # the run's metadata beside the CSV gives each column's unit: one panel per unit
-            units = json.loads(api.metadata_path(csv).read_text())["units"]
-        except (OSError, ValueError, KeyError, TypeError):
+        units, title = None, csv.name
+        try:  # the run's metadata beside the CSV: each column's unit (a panel per unit), the scene's name
+            meta = json.loads(api.metadata_path(csv).read_text())
+            units, title = meta.get("units"), meta.get("summary", {}).get("scenario") or title
+        except (OSError, ValueError, AttributeError):
             pass
-        plot_result(data, png, title=csv.stem, columns=args.record, units=units)
+        units = units if isinstance(units, dict) else None
+        plot_result(data, png, title=title, columns=args.record, units=units)
         print(f"wrote {png}")
         return 0
     raise api.UsageError(f"unknown command {args.command}")

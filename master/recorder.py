@@ -429,11 +429,30 @@ def plot_result(
     columns: list[str] | None = None,
     units: dict[str, str | None] | None = None,
 ) -> Path:
-    """Plot recorded columns of a structured array over "time" (s) into a PNG file.
+    """Plot recorded columns of a structured array over "time" (s) into a PNG file (`result_figure`;
+    the title is also the PNG's "Title")."""
+    import matplotlib.pyplot as plt
 
-    With `units` (column -> unit, None for none) each unit gets its own panel, so that
-    pressures in Pa do not flatten positions in m; without, one panel holds every column. Coupling
-    error columns ("coupling_error(...)", far smaller than the signals) get panels of their own.
+    fig = result_figure(data, title, columns, units)
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=100, metadata={"Title": title})
+    plt.close(fig)
+    return png
+
+
+def result_figure(
+    data: np.ndarray,
+    title: str = "",
+    columns: list[str] | None = None,
+    units: dict[str, str | None] | None = None,
+):
+    """The figure of recorded columns over "time" (a matplotlib Figure).
+
+    With `units` (column -> unit, None for none) each unit gets its own panel, labelled "[unit]"
+    (a panel of columns without a unit: no label), so that pressures in Pa do not flatten
+    positions in m; without, one panel holds every column. Coupling error columns
+    ("coupling_error(...)", far smaller than the signals) get panels of their own.
     """
     import matplotlib
 
@@ -451,17 +470,10 @@ def plot_result(
     for ax, ((what, unit), members) in zip(axes[:, 0], groups.items(), strict=False):
         for n in members:
             ax.plot(data["time"], data[n], label=n)
-        if units is not None:
-            ax.set_ylabel(what + (f"[{unit}]" if unit else "(no unit)"))
-        elif what:
-            ax.set_ylabel(what.strip())
+        ax.set_ylabel((what + (f"[{unit}]" if unit else "")).strip())
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
     axes[0, 0].set_title(title)
     fig.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
-    return png
+    return fig

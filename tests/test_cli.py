@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.util import read_csv
+from PIL import Image
 
 from master.cli import scene_stem
 from master.fmubuild import fmu_path
+from master.recorder import result_figure
 
 SSD = """<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="decay"
@@ -85,6 +87,18 @@ def test_run_writes_csv_and_plot(decay, tmp_path):
     assert (tmp_path / "par.csv").read_text() == out.read_text()  # same numbers from both backends
     r = master("plot", str(out), "-o", str(tmp_path / "again.png"))
     assert r.returncode == 0 and (tmp_path / "again.png").exists()
+    # titled by the scene's name (the metadata's), else by the file's; an axis without a unit unlabelled
+    assert png_title(png) == png_title(tmp_path / "again.png") == "decay"
+    (tmp_path / "out.json").unlink()
+    assert master("plot", str(out)).returncode == 0 and png_title(tmp_path / "out.png") == "out.csv"
+    fig = result_figure(read_csv(str(out)), units={"d.y": None})
+    assert [ax.get_ylabel() for ax in fig.axes] == [""]
+
+
+def png_title(png: Path) -> str:
+    """The "Title" a PNG file carries."""
+    with Image.open(png) as image:
+        return image.text["Title"]
 
 
 def test_validate_info(decay):
