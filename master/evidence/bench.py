@@ -555,9 +555,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scheduler", metavar="ADDRESS", help="run the configurations on this Dask cluster")
     a = ap.parse_args(argv)
     from master.api import UsageError, load_scenario
+    from master.cli import scene_stem
     from master.scenario import ScenarioError
 
-    out = Path(a.out) if a.out else Path("results") / f"bench-{Path(a.scenario).stem}"
+    out = Path(a.out) if a.out else Path("results") / f"bench-{scene_stem(a.scenario)}"
     try:
         p = profile_for(load_scenario(a.scenario))
         rows = bench(
