@@ -354,7 +354,8 @@ class RunSummary:
     output: str | None = None
     notes: list[str] = field(default_factory=list)  # what the run could not do as asked
     # per extrapolated connection: predicted vs produced sample at macro-step ends, "max" and
-    # "rms", relative to the signal's range (the coupling error estimate)
+    # "rms", relative to the range of the source's samples from the first full-order prediction
+    # on (the coupling error estimate, master.runtime.tables.coupling_errors)
     coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
