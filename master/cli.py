@@ -341,7 +341,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
         units, title = None, csv.name
         try:  # the run's metadata beside the CSV: each column's unit (a panel per unit), the scene's name
             meta = json.loads(api.metadata_path(csv).read_text())
-            units, title = meta.get("units"), meta.get("summary", {}).get("scenario") or title
+            units, title = meta.get("units"), str(meta.get("summary", {}).get("scenario") or title)
         except (OSError, ValueError, AttributeError):
             pass
         units = units if isinstance(units, dict) else None
