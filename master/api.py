@@ -16,7 +16,7 @@ from pathlib import Path
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
 from master.fmu import FmuError, read_description, variables_of
-from master.recorder import Recorder, ResultsError, RunResult, RunSummary
+from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
 from master.schedule import Capability, Plan, build_plan
@@ -281,19 +281,17 @@ def run(
     return result
 
 
-def metadata_path(csv: str | Path) -> Path:
-    """The results' metadata beside a results CSV file: same name, .json."""
-    return Path(csv).with_suffix(".json")
-
-
 def _write_metadata(output: str | Path | None, summary, sc: Scenario, p: Plan) -> None:
-    """Beside the CSV: the run summary (with the real-time lateness histogram) and each column's
-    unit, as JSON. A metadata file that cannot be written costs the run nothing but a warning."""
+    """Beside the CSV: the run summary (with the real-time lateness histogram), each column's unit
+    and type (as `Recorder.data` holds it: "float64", "int64", "uint64", "String" or "Binary";
+    `read_csv` reads it), as JSON. A metadata file that cannot be written costs the run nothing
+    but a warning."""
     if output is None:
         return
     meta = {
         "scenario": str(sc.path),
         "units": _units(sc, p),
+        "types": {c: p.column_types.get(c, "float64") for c in p.columns},
         "summary": dataclasses.asdict(summary)
         | {
             "real_time_factor": summary.real_time_factor,

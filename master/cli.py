@@ -260,8 +260,17 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _default_output(scenario: str) -> Path:
-    """results/<scenario name>-<date>-<time>.csv: a run without -o still keeps what it computed."""
-    return Path("results") / f"{Path(scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
+    """results/<scene>-<date>-<time>.csv: a run without -o still keeps what it computed."""
+    return Path("results") / f"{scene_stem(scenario)}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
+
+
+def scene_stem(scenario: str) -> str:
+    """How the files made from a scenario file are named: its stem (an .ssp: the archive's), but
+    for the generic SystemStructure.ssd the name of its folder (models/hydraulic-manipulator/)."""
+    path = Path(scenario)
+    if path.name == "SystemStructure.ssd" and path.resolve().parent.name:
+        return path.resolve().parent.name
+    return path.stem
 
 
 def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
@@ -341,12 +350,14 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             if text:
                 raise api.UsageError(f"{csv}: column {text[0]!r} holds text, not numbers to plot")
         png = Path(args.output) if args.output else csv.with_suffix(".png")
-        units = None
-        try:  # the run's metadata beside the CSV gives each column's unit: one panel per unit
-            units = json.loads(api.metadata_path(csv).read_text())["units"]
-        except (OSError, ValueError, KeyError, TypeError):
+        units, title = None, csv.name
+        try:  # the run's metadata beside the CSV: each column's unit (a panel per unit), the scene's name
+            meta = json.loads(api.metadata_path(csv).read_text())
+            units, title = meta.get("units"), str(meta.get("summary", {}).get("scenario") or title)
+        except (OSError, ValueError, AttributeError):
             pass
-        plot_result(data, png, title=csv.stem, columns=args.record, units=units)
+        units = units if isinstance(units, dict) else None
+        plot_result(data, png, title=title, columns=args.record, units=units)
         print(f"wrote {png}")
         return 0
     raise api.UsageError(f"unknown command {args.command}")
@@ -391,7 +402,7 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
 def _sweep(args: argparse.Namespace, quiet: bool) -> int:
     from master.sweeps import sweep
 
-    out = Path(args.out) if args.out else Path("results") / f"sweep-{Path(args.scenario).stem}"
+    out = Path(args.out) if args.out else Path("results") / f"sweep-{scene_stem(args.scenario)}"
     try:
         result = sweep(
             args.scenario,

@@ -17,6 +17,7 @@ its bytes as quoted hex digits.
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 import tempfile
 import warnings
@@ -222,11 +223,19 @@ def _quoted(text: str) -> str:
     return '"' + text.replace('"', '""') + '"'
 
 
+def metadata_path(csv: str | Path) -> Path:
+    """The results' metadata beside a results CSV file: same name, .json."""
+    return Path(csv).with_suffix(".json")
+
+
 def read_csv(path: str | Path) -> np.ndarray:
     """A results CSV file (`Recorder`'s, or any of numbers under a header of quoted or plain
-    names) as a structured array: a float64 field per column of numbers (64-bit integers beyond
-    2^53 rounded), an object field of str per column of quoted texts (a Binary's hex digits; a file
-    without rows has float64 fields only). ValueError if it is not one."""
+    names) as a structured array with the field types `Recorder.data` has: each column's type as
+    the run's metadata beside the file says ("types", see master.api), else as the text shows (a
+    column of quoted texts: object, of str; of integers only: int64, uint64 beyond it; any other
+    and "time": float64). 64-bit integers are exact; a Binary is read as its hex digits. ValueError
+    if it is not one."""
+    types = _declared_types(path)
     with open(path, newline="", encoding="utf-8") as f:
         header = next(csv.reader([f.readline()]), None)
         if not header:
@@ -238,25 +247,86 @@ def read_csv(path: str | Path) -> np.ndarray:
                 rows = np.loadtxt(f, delimiter=",", ndmin=2)
         except ValueError:  # quoted texts among the numbers
             f.seek(start)
-            return _read_typed([r for r in csv.reader(f, quoting=csv.QUOTE_NONNUMERIC) if r], header)
-    if rows.size == 0:
-        rows = np.zeros((0, len(header)))
-    if rows.shape[1] != len(header):
-        raise ValueError(f"{len(header)} names in the header, {rows.shape[1]} values a row")
-    dtype = np.dtype([(name, np.float64) for name in header])
-    return np.ascontiguousarray(rows, dtype=np.float64).view(dtype).reshape(-1)
+            return _read_texts(f, header, types)
+        if not rows.size:  # no rows: each column's type as the metadata says, else float64
+            return _structured(header, {n: np.zeros(0, _held_as((types or {}).get(n))) for n in header})
+        if rows.shape[1] != len(header):
+            raise ValueError(f"{len(header)} names in the header, {rows.shape[1]} values a row")
+        # the columns whose numbers may be integers are read again as text, to be exact
+        exact = [i for i, n in enumerate(header) if _maybe_integers(n, rows[:, i], types)]
+        if exact:
+            f.seek(start)
+            texts = np.loadtxt(f, delimiter=",", usecols=exact, dtype=str, ndmin=2)
+    columns = {n: rows[:, i] for i, n in enumerate(header)}
+    columns |= {header[i]: _numbers(header[i], texts[:, j], types) for j, i in enumerate(exact)}
+    return _structured(header, columns)
 
 
-def _read_typed(rows: list[list], header: list[str]) -> np.ndarray:
-    """Rows read with quoted cells as str and the others as float: a column of texts is an object
-    field, any other a float64 one."""
-    if any(len(r) != len(header) for r in rows):
+def _held_as(t: str | None) -> type:
+    """The field type of a column of type t ("float64", "int64", "uint64", "String", "Binary")."""
+    return object if t in TEXT_TYPES else _RAW.get(t or "", np.float64)
+
+
+def _declared_types(csv_path: str | Path) -> dict[str, str] | None:
+    """Each column's type ("float64", "int64", "uint64", "String", "Binary") as the run's metadata
+    beside the CSV file says; None without one."""
+    try:
+        types = json.loads(metadata_path(csv_path).read_text(encoding="utf-8"))["types"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return types if isinstance(types, dict) else None
+
+
+def _maybe_integers(name: str, values: np.ndarray, types: dict[str, str] | None) -> bool:
+    """Whether a column of numbers read as float64 has to be read again as integers."""
+    if types is not None and name in types:
+        return types[name] in _RAW
+    return name != "time" and bool(np.all(np.isfinite(values) & (values == np.round(values))))
+
+
+def _numbers(name: str, texts: np.ndarray, types: dict[str, str] | None) -> np.ndarray:
+    """A column of numbers from its cells' text: int64 or uint64 where its type says so or, without
+    one, where every cell is an integer (exact); else float64."""
+    declared = (types or {}).get(name)
+    if declared is None and name != "time":
+        for kind in (np.int64, np.uint64):  # a column of integers only
+            try:
+                return texts.astype(kind)
+            except (ValueError, OverflowError):
+                pass
+    if declared in _RAW:
+        try:
+            return texts.astype(_RAW[declared])
+        except (ValueError, OverflowError):
+            raise ValueError(f"column {name!r}: not the {declared} values its metadata says") from None
+    return texts.astype(np.float64)
+
+
+def _read_texts(f, header: list[str], types: dict[str, str] | None) -> np.ndarray:
+    """The rows of a file with quoted texts among the numbers: a column of quoted texts (or one its
+    type says is a String or Binary) is an object field of str, any other one of numbers."""
+    start = f.tell()
+    cells = [r for r in csv.reader(f) if r]
+    f.seek(start)
+    quoted = [r for r in csv.reader(f, quoting=csv.QUOTE_NONNUMERIC) if r]  # unquoted cells: float
+    if any(len(r) != len(header) for r in cells):
         raise ValueError(f"{len(header)} names in the header, rows of other lengths")
-    texts = {i for r in rows for i, v in enumerate(r) if isinstance(v, str)}
-    dtype = np.dtype([(n, object if i in texts else np.float64) for i, n in enumerate(header)])
-    out = np.empty(len(rows), dtype)
+    columns = {}
     for i, name in enumerate(header):
-        out[name] = [r[i] for r in rows]
+        text = (types or {}).get(name) in TEXT_TYPES or any(isinstance(r[i], str) for r in quoted)
+        if text:
+            columns[name] = np.array([r[i] for r in cells], dtype=object)
+        else:
+            columns[name] = _numbers(name, np.array([r[i] for r in cells], dtype=str), types)
+    return _structured(header, columns)
+
+
+def _structured(header: list[str], columns: dict[str, np.ndarray]) -> np.ndarray:
+    """One structured array of these columns, in the header's order."""
+    n = len(next(iter(columns.values()))) if columns else 0
+    out = np.empty(n, np.dtype([(name, columns[name].dtype) for name in header]))
+    for name in header:
+        out[name] = columns[name]
     return out
 
 
@@ -284,7 +354,8 @@ class RunSummary:
     output: str | None = None
     notes: list[str] = field(default_factory=list)  # what the run could not do as asked
     # per extrapolated connection: predicted vs produced sample at macro-step ends, "max" and
-    # "rms", relative to the signal's range (the coupling error estimate)
+    # "rms", relative to the range of the source's samples from the first full-order prediction
+    # on (the coupling error estimate, master.runtime.tables.coupling_errors)
     coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
@@ -359,11 +430,30 @@ def plot_result(
     columns: list[str] | None = None,
     units: dict[str, str | None] | None = None,
 ) -> Path:
-    """Plot recorded columns of a structured array over "time" (s) into a PNG file.
+    """Plot recorded columns of a structured array over "time" (s) into a PNG file (`result_figure`;
+    the title is also the PNG's "Title")."""
+    import matplotlib.pyplot as plt
 
-    With `units` (column -> unit, None for none) each unit gets its own panel, so that
-    pressures in Pa do not flatten positions in m; without, one panel holds every column. Coupling
-    error columns ("coupling_error(...)", far smaller than the signals) get panels of their own.
+    fig = result_figure(data, title, columns, units)
+    png = Path(png)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=100, metadata={"Title": title})
+    plt.close(fig)
+    return png
+
+
+def result_figure(
+    data: np.ndarray,
+    title: str = "",
+    columns: list[str] | None = None,
+    units: dict[str, str | None] | None = None,
+):
+    """The figure of recorded columns over "time" (a matplotlib Figure).
+
+    With `units` (column -> unit, None for none) each unit gets its own panel, labelled "[unit]"
+    (a panel of columns without a unit: no label), so that pressures in Pa do not flatten
+    positions in m; without, one panel holds every column. Coupling error columns
+    ("coupling_error(...)", far smaller than the signals) get panels of their own.
     """
     import matplotlib
 
@@ -381,17 +471,10 @@ def plot_result(
     for ax, ((what, unit), members) in zip(axes[:, 0], groups.items(), strict=False):
         for n in members:
             ax.plot(data["time"], data[n], label=n)
-        if units is not None:
-            ax.set_ylabel(what + (f"[{unit}]" if unit else "(no unit)"))
-        elif what:
-            ax.set_ylabel(what.strip())
+        ax.set_ylabel((what + (f"[{unit}]" if unit else "")).strip())
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
     axes[0, 0].set_title(title)
     fig.tight_layout()
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
-    return png
+    return fig

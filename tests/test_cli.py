@@ -8,8 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.util import read_csv
+from PIL import Image
 
+from master.cli import scene_stem
 from master.fmubuild import fmu_path
+from master.recorder import result_figure
 
 SSD = """<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="decay"
@@ -84,6 +87,18 @@ def test_run_writes_csv_and_plot(decay, tmp_path):
     assert (tmp_path / "par.csv").read_text() == out.read_text()  # same numbers from both backends
     r = master("plot", str(out), "-o", str(tmp_path / "again.png"))
     assert r.returncode == 0 and (tmp_path / "again.png").exists()
+    # titled by the scene's name (the metadata's), else by the file's; an axis without a unit unlabelled
+    assert png_title(png) == png_title(tmp_path / "again.png") == "decay"
+    (tmp_path / "out.json").unlink()
+    assert master("plot", str(out)).returncode == 0 and png_title(tmp_path / "out.png") == "out.csv"
+    fig = result_figure(read_csv(str(out)), units={"d.y": None})
+    assert [ax.get_ylabel() for ax in fig.axes] == [""]
+
+
+def png_title(png: Path) -> str:
+    """The "Title" a PNG file carries."""
+    with Image.open(png) as image:
+        return image.text["Title"]
 
 
 def test_validate_info(decay):
@@ -205,6 +220,19 @@ def test_run_without_output_writes_under_results_and_says_where(decay, tmp_path)
     assert len(read_csv(str(csv))) == 101
 
 
+def test_the_default_results_of_a_generic_system_structure_are_named_after_its_folder(decay, tmp_path):
+    """models/<scene>/SystemStructure.ssd writes results/<scene>-DATE-TIME.csv, not SystemStructure-..."""
+    scene = tmp_path / "decay-scene"
+    scene.mkdir()
+    (scene / "SystemStructure.ssd").write_text(decay.read_text())
+    r = master("run", str(scene / "SystemStructure.ssd"), "-q", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    (csv,) = (tmp_path / "results").glob("*.csv")
+    assert csv.name.startswith("decay-scene-") and len(read_csv(str(csv))) == 101
+    assert scene_stem(str(scene / "SystemStructure.ssd")) == "decay-scene" == scene_stem("decay-scene.ssp")
+    assert scene_stem("SystemStructure.ssd") == Path.cwd().name
+
+
 def test_closed_pipe_ends_quietly():
     """`master info X | head -1`: the reader goes away, master ends without a traceback."""
     proc = subprocess.Popen(
@@ -241,6 +269,7 @@ def test_results_metadata_beside_the_csv(decay, tmp_path):
     assert r.returncode == 0, r.stderr
     meta = json.loads((tmp_path / "out.json").read_text())
     assert meta["units"] == {"d.y": None}  # the Dahlquist FMU's y has no unit
+    assert meta["types"] == {"time": "float64", "d.y": "float64"}  # as the results hold them
     s = meta["summary"]
     assert s["stop_reason"] == "finished" and s["macro_steps"] == 100
     assert sum(n for _, n in s["lateness_histogram"]) >= 100 and s["lateness"]["p50"] >= 0

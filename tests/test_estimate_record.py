@@ -22,6 +22,7 @@ from fmpy.util import read_csv
 import master.api as api
 from master.coupling import weights
 from master.evidence.oscillator import scene
+from master.recorder import result_figure
 from master.scenario import validate
 
 OSCILLATOR = Path(__file__).parent / "scenarios" / "oscillator" / "oscillator.ssd"
@@ -187,6 +188,8 @@ def test_the_command_line_flag_adds_the_columns_to_the_csv_and_plot_reads_them(t
     assert r.returncode == 0 and png.stat().st_size > 0, r.stderr
     r = master("plot", str(out))
     assert r.returncode == 0 and out.with_suffix(".png").is_file(), r.stderr
+    labels = [ax.get_ylabel() for ax in result_figure(data, units=units).axes]  # a panel per unit
+    assert labels == ["[m]", "[m/s]", "coupling error [m]", "coupling error [m/s]"]
     plain = tmp_path / "plain.csv"
     assert master("run", str(OSCILLATOR), "--stop-time", "2", "-o", str(plain), "--serial").returncode == 0
     assert not re.search("coupling_error", plain.read_text().splitlines()[0])

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from master.cli import main
-from master.evidence.bench import PROFILES, Config, Row, configurations, pareto, speedup
+from master.evidence.bench import PROFILES, Config, Row, configurations, figure, pareto, speedup
 
 SCENE = Path(__file__).resolve().parents[1] / "docs" / "evidence" / "oscillator" / "oscillator.ssd"
 
@@ -42,6 +42,33 @@ def test_pareto_front_and_speedup():
     assert [(r.wall_time, r.error) for r in pareto(rows)] == [(0.2, 0.5), (0.3, 0.05)]
     b, best = speedup(rows, base.config)
     assert b is base and best.wall_time == pytest.approx(0.3)
+
+
+def crowded_tick_labels(axis) -> list[tuple[str, str]]:
+    """The pairs of shown tick labels (major and minor) of a drawn axis closer than half a label's
+    height (they overlap or touch)."""
+    ticks = axis.get_majorticklabels() + axis.get_minorticklabels()
+    boxes = [(t.get_text(), t.get_window_extent()) for t in ticks if t.get_visible() and t.get_text()]
+    pad = [box.padded(box.height / 4) for _, box in boxes]
+    return [
+        (boxes[i][0], boxes[j][0])
+        for i in range(len(boxes))
+        for j in range(i + 1, len(boxes))
+        if pad[i].overlaps(pad[j])
+    ]
+
+
+def test_the_plot_labels_wall_times_within_a_decade_apart():
+    """The hydraulic scene's quick sweep spans 4 ms to 75 ms: matplotlib's labels of the minor
+    ticks there ("3x10^-2", "4x10^-2") ran into each other; 1, 2, 5 per decade do not."""
+    rows = [
+        _row(t, e) for t, e in ((0.0038, 0.1), (0.016, 0.04), (0.03, 0.02), (0.053, 0.04), (0.0755, 1e-3))
+    ]
+    fig = figure(rows, "work-precision")
+    fig.canvas.draw()
+    for axis in (fig.axes[0].xaxis, fig.axes[0].yaxis):
+        shown = [t.get_text() for t in axis.get_majorticklabels() if t.get_visible() and t.get_text()]
+        assert len(shown) >= 3 and crowded_tick_labels(axis) == [], shown
 
 
 def test_bench_works_on_any_scene_and_writes_under_results(tmp_path, capsys, monkeypatch):

@@ -21,7 +21,8 @@ import master
 import master.api as api
 from master.sweeps import SweepError
 from master.sweeps.cases import parse_vary, points
-from master.sweeps.metrics import parse_metric
+from master.sweeps.metrics import parse_metric, unit_of
+from master.sweeps.plot import sweep_figure
 
 REPO = Path(__file__).resolve().parent.parent
 OSCILLATOR = REPO / "tests" / "scenarios" / "oscillator" / "oscillator.ssd"
@@ -60,6 +61,16 @@ def test_grid_on_a_local_cluster_matches_single_runs_and_a_rerun_skips_it(tmp_pa
     assert [(r["mass1.c"], r["mass2.m"]) for r in table] == [
         (c, m) for c in (1, 2, 3) for m in (0.5, 1, 1.5, 2)
     ]
+
+    # each axis of the plot says its unit: the FMU's for the parameter, the column's for a metric
+    assert (result.units["mass1.c"], result.units["peak"], result.units["final(mass1.v)"]) == (
+        "N/m",
+        "m",
+        "m/s",
+    )
+    (ax,) = sweep_figure(result, "oscillator").axes  # one metric: one panel, a line per mass2.m
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("mass1.c [N/m]", "peak [m]")
+    assert ax.get_legend_handles_labels()[1][0] == "mass2.m = 0.5 kg"
 
     again = master.sweep(OSCILLATOR, GRID, series=True, **kw)
     assert (again.ran, again.skipped) == (0, 12)
@@ -178,6 +189,14 @@ def test_metrics_compute_what_they_say_and_run_no_python():
     assert value["mean(abs(m.x))"] == pytest.approx(
         np.mean(np.abs(np.sin(np.pi * t))), rel=1e-12
     )  # of samples
+    units = {"m.x": "m", "m.v": "m/s"}
+    unit = {text: unit_of(parse_metric(f"k={text}", cols), units) for text in value}
+    assert unit == {"integral(m.v)": "m/s.s", "at(m.v, 0.705)": "m/s", "max(m.x) - min(m.x)": "m",
+                    "final(m.v) ** 2 / 2": None, "time_of_max(m.x)": "s", "rms(col('m.v'))": "m/s",
+                    "mean(abs(m.x))": "m"}  # fmt: skip
+    assert unit_of(parse_metric("k=-2 * max(m.x) / 3", cols), units) == "m"
+    assert unit_of(parse_metric("k=max(m.x) * max(m.v)", cols), units) is None  # the product's unit: unsaid
+    assert unit_of(parse_metric("k=max(m.x) - max(m.v)", cols), units) is None
     for text, words in [
         ("k=__import__('os').system('true')", "is not allowed"),
         ("k=__import__('os')", "unknown function __import__"),

@@ -23,6 +23,7 @@ from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
 from master.fmubuild import fmu_path
+from master.recorder import read_csv
 from master.scenario import ScenarioError, validate
 from master.scenario.fmuinfo import connection_problem
 from master.scenario.model import Component, Connection, Scenario, Stimulus
@@ -295,6 +296,38 @@ def test_a_recorded_64_bit_integer_beyond_2_to_the_53_keeps_every_bit(folder: Pa
         assert [int(v) for v in d["a.y_uint64"]] == [big] * len(d)  # u = 0: y = 0 + p, every row
         assert [int(v) for v in d["a.y_int64"]] == [low] * len(d)
         assert all(line.endswith(f",{big},{low}") for line in out.read_text().splitlines()[1:])
+
+
+def test_read_csv_gives_back_every_column_with_its_type_and_every_bit(folder: Path):
+    """A run's CSV file read back by `read_csv`: with the metadata beside it each column has the
+    type the results hold (Int64 and UInt64 beyond 2^53 exact, an Int32 as float64); without it
+    the text decides, a column of integers only being int64 (uint64 beyond int64's range)."""
+    fmu = alltypes()
+    odd, big = 2**53 + 1, 2**64 - 3  # 9007199254740993 reads 9007199254740992.0 as a float64
+    params = {"p_int64": odd, "p_uint64": big, "p_int32": 7, "p_float64": 0.5}
+    step = Stimulus("a", "u_int64", "step", (0.35,), (-(2.0**40),))  # y_int64 = 2^53 + 1 - 2^40 from 0.4
+    record = tuple(("a", f"y_{t}") for t in ("int64", "uint64", "int32", "float64"))
+    sc = Scenario(Path("wide.ssd"), "wide", (Component("a", fmu, params),), (), Fraction(0), Fraction(1), H,
+                  stimuli=(step,), record=record)  # fmt: skip
+    out = folder / "back.csv"
+    d = api.run(sc, backend="serial", output=out).data
+    assert [int(v) for v in d["a.y_int64"]] == [odd] * 4 + [odd - 2**40] * 7
+    back = read_csv(out)
+    assert back.dtype == d.dtype  # names and types: time, int64, uint64, float64, float64
+    for name in d.dtype.names:
+        assert np.array_equal(back[name], d[name]), name
+    out.with_suffix(".json").unlink()  # the text alone: the integer columns are integers
+    guessed = read_csv(out)
+    assert [guessed.dtype[n] for n in guessed.dtype.names] == [
+        np.float64,
+        np.int64,
+        np.uint64,
+        np.int64,
+        np.float64,
+    ]
+    assert int(guessed["a.y_int64"][0]) == odd and int(guessed["a.y_uint64"][-1]) == big
+    for name in d.dtype.names:
+        assert np.array_equal(guessed[name], d[name]), name
 
 
 def test_a_failing_typed_call_is_named_with_its_fmi_function(monkeypatch):

@@ -417,10 +417,21 @@ def write_csv(rows: list[Row], path: Path) -> None:
 
 def plot(rows: list[Row], path: Path, title: str) -> None:
     """Log-log work-precision plot: wall time against error; Pareto front; unstable runs on top."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(rows, title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def figure(rows: list[Row], title: str):
+    """The work-precision figure of `plot` (a matplotlib Figure)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
     markers = {"single-rate": "s", "dual-rate": "o", "order": "^", "control-solver": "D", "mech-solver": "v",
@@ -438,15 +449,17 @@ def plot(rows: list[Row], path: Path, title: str) -> None:
     if front:
         ax.loglog([r.wall_time for r in front], [r.error for r in front], "-", color="black", lw=1,
                   label="Pareto front")  # fmt: skip
+    for axis in (ax.xaxis, ax.yaxis):  # labels at 1, 2, 5 per decade: matplotlib's own labels
+        axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))  # of minor ticks overlap
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("wall time [s]")
     ax.set_ylabel("worst scaled max error")
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig
 
 
 def bench(
@@ -542,9 +555,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scheduler", metavar="ADDRESS", help="run the configurations on this Dask cluster")
     a = ap.parse_args(argv)
     from master.api import UsageError, load_scenario
+    from master.cli import scene_stem
     from master.scenario import ScenarioError
 
-    out = Path(a.out) if a.out else Path("results") / f"bench-{Path(a.scenario).stem}"
+    out = Path(a.out) if a.out else Path("results") / f"bench-{scene_stem(a.scenario)}"
     try:
         p = profile_for(load_scenario(a.scenario))
         rows = bench(

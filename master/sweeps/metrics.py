@@ -151,3 +151,45 @@ def _eval(node: ast.expr, data: np.ndarray):
     if f == "time_of_max":
         return t[int(np.argmax(x))]
     return np.interp(args[1], t, x)  # at(x, t)
+
+
+def unit_of(metric: Metric, units: dict[str, str | None]) -> str | None:
+    """The metric's unit where its expression shows it (units: each column's, None for none): a
+    column's through abs, a sign, a reduction or at(), times or over a number; s for
+    time_of_max; the column's times s for an integral; a sum or difference of terms of one unit.
+    None where a term has none or the expression does not say (a product of two columns, sqrt)."""
+    return _unit(metric.tree, {**units, "time": "s"})
+
+
+def _unit(node: ast.expr, units: dict[str, str | None]) -> str | None:
+    column = _column(node)
+    if column is not None:
+        return units.get(column)
+    if isinstance(node, ast.UnaryOp):
+        return _unit(node.operand, units)
+    if isinstance(node, ast.BinOp):
+        left, right = _unit(node.left, units), _unit(node.right, units)
+        if isinstance(node.op, ast.Add | ast.Sub):
+            return left if left == right else None
+        if isinstance(node.op, ast.Mult) and _number(node.left):
+            return right
+        if isinstance(node.op, ast.Mult | ast.Div) and _number(node.right):
+            return left
+        return None
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+        f = node.func.id
+        if f == "time_of_max":
+            return "s"
+        inner = _unit(node.args[0], units) if node.args else None
+        if f == "integral":
+            return f"{inner}.s" if inner else None
+        if f in _REDUCTIONS or f in ("abs", "at"):
+            return inner
+    return None
+
+
+def _number(node: ast.expr) -> bool:
+    """Whether the node is a number (with or without a sign)."""
+    if isinstance(node, ast.UnaryOp):
+        return _number(node.operand)
+    return isinstance(node, ast.Constant)

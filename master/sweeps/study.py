@@ -21,7 +21,7 @@ from master.scenario.model import Scenario
 from master.sweeps.case import FINISHED, LOST, OK, CaseOptions, run_case
 from master.sweeps.cases import SweepError, bind, case_key, parse_vary, points, scenario_hash
 from master.sweeps.executor import Executor
-from master.sweeps.metrics import parse_metric
+from master.sweeps.metrics import parse_metric, unit_of
 from master.sweeps.store import append_series, read_cases, series_keys, write_cases
 
 FLUSH_S = 2.0  # s between rewrites of the table while cases finish
@@ -41,6 +41,8 @@ class SweepResult:
     failed: int = 0
     dashboard: str | None = None
     points: list[dict] = field(default_factory=list)  # the varied values of each case, in order
+    # the unit of each varied variable, table column ("final(col)", ...) and metric; None: none known
+    units: dict[str, str | None] = field(default_factory=dict)
     startup_time: float = 0.0  # s to start (or reach) the cluster
     cases_time: float = 0.0  # s from the first case sent to the last result back
 
@@ -103,6 +105,7 @@ def sweep(
     rows: dict[str, dict] = {k: {**done[k], "index": i} for i, k in enumerate(keys) if k in done}
     todo = [i for i, k in enumerate(keys) if k not in done]
     result = SweepResult(folder, [], scene=sc.name, skipped=len(rows), points=cases)
+    result.units = _units(api._units(sc, plan), ranges, columns, checked)
     grid = _time_grid(plan)
     options = CaseOptions(metrics=checked, series=series, step_timeout=step_timeout)
     pending: list[tuple[int, np.ndarray]] = []  # (case index, rows) not yet in the series store
@@ -153,6 +156,14 @@ def _scene(api, scenario, stop_time, set_values, record, output_interval) -> Sce
         return api.apply_overrides(scenario, stop_time, record, set_values, output_interval)
     texts = dict(api._split_set(s) for s in set_values) if set_values else None  # checked by the reader
     return api.apply_overrides(api.load_scenario(scenario, texts), stop_time, record, None, output_interval)
+
+
+def _units(recorded: dict[str, str | None], ranges, columns: list[str], metrics) -> dict[str, str | None]:
+    """The unit of each varied variable (its FMU's), statistic of a recorded column (the column's)
+    and metric (`unit_of`)."""
+    units = {r.name: r.var.unit if r.var is not None else None for r in ranges}
+    units |= {f"{s}({c})": recorded.get(c) for c in columns for s in ("final", "min", "max")}
+    return units | {m.name: unit_of(m, recorded) for m in metrics}
 
 
 def _table_columns(varied: list[str], columns: list[str], metrics: list[str]) -> list[str]:
