@@ -417,17 +417,24 @@ def test_cli_exit_code_follows_the_signal(tmp_path):
     assert len(read_csv(str(out))) > 100
 
 
-def test_workers_die_with_a_killed_master(tmp_path):
-    """SIGKILL to the master (no clean-up possible there): the workers still end (PR_SET_PDEATHSIG),
-    and nothing is left in /dev/shm (the shared memory is anonymous)."""
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+def test_workers_die_with_a_killed_master_and_its_folders_go(tmp_path, backend):
+    """SIGKILL to the master alone (no clean-up possible there): the workers still end
+    (PR_SET_PDEATHSIG), nothing is left in /dev/shm (the shared memory is anonymous), and the
+    janitor removes the run's temporary folders (extracted FMUs, raw results) from TMPDIR; the
+    rows written to the CSV file stay."""
     shm = shm_entries()
-    proc, children, _ = long_run(tmp_path)
-    assert len(children) >= 2
+    proc, children, out = long_run(tmp_path, backend)
+    assert len(children) >= 2  # the workers and the janitor
+    assert list(tmp_path.glob("master-run-*")) and list(tmp_path.glob("master_results_*"))
     proc.kill()
     proc.communicate(timeout=20)
-    gone, alive = psutil.wait_procs(children, timeout=3)
+    gone, alive = psutil.wait_procs(children, timeout=10)
     assert alive == []
     assert shm_entries() <= shm
+    assert list(tmp_path.glob("master-run-*")) == [] and list(tmp_path.glob("master_results_*")) == []
+    data = read_csv(str(out))
+    assert len(data) > 10 and np.all(np.diff(data["time"]) > 0)
 
 
 def test_auto_decides_from_the_timed_trials():
