@@ -24,6 +24,7 @@ from master.schedule import Capability, Plan, build_plan
 log = logging.getLogger("master")
 
 BACKENDS = ("serial", "parallel", "auto", "in-process")
+_NOTED_FMUS: set[str] = set()  # FMUs whose Plan.fmu_notes this process has said
 
 
 class UsageError(Exception):
@@ -229,8 +230,10 @@ def run(
     p = plan(sc)
     for note in p.notes:
         log.info(note)
-    for warning in p.warnings:
-        log.warning(warning)
+    for fmu, note in p.fmu_notes:
+        if fmu not in _NOTED_FMUS:  # a bench or a tune runs one FMU many times in one process
+            _NOTED_FMUS.add(fmu)
+            log.info(note)
     with stop_signals():
         if cpus is not None:
             if backend == "in-process":
@@ -363,7 +366,8 @@ def fmu_info(path: Path) -> str:
         f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit",
     ]
     for v in variables_of(md).values():
-        kind = v.type + (f"[{','.join(str(n) for n in v.shape)}]" if v.shape else "")  # an FMI 3 array
+        shape = f"[{','.join(str(n) for n in v.shape)}]" if v.shape else ""  # an FMI 3 array
+        kind = (v.fmi_type or v.type) + shape  # FMI 3's own type names: Float32, Int64, ...
         lines.append(
             f"  {v.name:<24} {v.causality:<20} {v.variability:<12} {kind:<12} "
             f"{v.start or '':<12} {v.unit or ''}"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import logging
 import os
@@ -11,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from master import api
+from master import api, extras
 from master.backends.component import SimulationError
 from master.fmu import FmuError
 from master.scenario import ScenarioError
@@ -19,6 +20,7 @@ from master.scenario import ScenarioError
 SHOWN_FAILURES = 10  # failed cases a sweep lists by name; the table has them all
 USER_ERRORS: tuple[type[BaseException], ...] = (
     api.UsageError,
+    extras.MissingExtra,
     FmuError,
     ScenarioError,
     SimulationError,
@@ -33,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
-    r.add_argument("scenario", help="scenario file (.ssd or .ssp)")
+    r.add_argument("scenario", help="scenario file (.ssd or .ssp), or a folder holding one")
     _scene_options(r)
     r.add_argument(
         "-o",
@@ -141,6 +143,7 @@ def _parser() -> argparse.ArgumentParser:
 
     be = sub.add_parser("bench", help="work-precision bench of a scenario", add_help=False)
     be.add_argument("args", nargs=argparse.REMAINDER)
+    p.commands = sub.choices  # type: ignore[attr-defined]  # name -> its parser, for _parse
     return p
 
 
@@ -234,8 +237,14 @@ def main(argv: list[str] | None = None) -> int:
     if argv[:1] == ["bench"]:
         from master.evidence.bench import main as bench_main
 
+        try:
+            if not {"-h", "--help"} & set(argv):
+                extras.require("bench")
+        except extras.MissingExtra as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 1
         return int(bench_main(argv[1:]) or 0)
-    args = _parser().parse_args(argv)
+    args = _parse(argv)
     quiet = getattr(args, "quiet", False)
     handler = logging.StreamHandler(sys.stderr)  # master's own messages; other libraries' stay quiet
     handler.setFormatter(logging.Formatter("%(message)s"))
@@ -259,6 +268,23 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def _parse(argv: list[str]) -> argparse.Namespace:
+    """The parsed arguments; `master` alone prints the usage with the list of commands, and an
+    unknown option is reported with the usage of the command it was given to."""
+    p = _parser()
+    if not argv:
+        p.print_help(sys.stderr)
+        sys.exit(2)
+    args, unknown = p.parse_known_args(argv)
+    if unknown:
+        sub = p.commands[args.command]  # type: ignore[attr-defined]
+        known = [o for a in sub._actions for o in a.option_strings]
+        close = difflib.get_close_matches(unknown[0].split("=")[0], known, n=1)
+        hint = f" (did you mean {close[0]}?)" if close and unknown[0].startswith("-") else ""
+        sub.error(f"unrecognized arguments: {' '.join(unknown)}{hint}")
+    return args
+
+
 def _default_output(scenario: str) -> Path:
     """results/<scene>-<date>-<time>.csv: a run without -o still keeps what it computed."""
     return Path("results") / f"{scene_stem(scenario)}-{time.strftime('%Y%m%d-%H%M%S')}.csv"
@@ -274,13 +300,9 @@ def scene_stem(scenario: str) -> str:
 
 
 def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
+    extras.require(args.command, vars(args))  # before any work: one line if an extra is missing
     if args.command == "run":
         progress = args.progress or (sys.stderr.isatty() and not quiet)
-        if Path(args.scenario).suffix.lower() == ".fmu":
-            raise api.UsageError(
-                f"{args.scenario}: an FMU, not a scenario; `master info {args.scenario}` describes it, "
-                "a scenario (.ssd/.ssp) runs it"
-            )
         output = Path(args.output) if args.output else _default_output(args.scenario)
         if output.suffix.lower() != ".csv":
             raise api.UsageError(f"-o {output}: results are written as CSV; name a .csv file")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from fractions import Fraction
+from pathlib import Path
 
 from master.fmu import VariableInfo
 from master.scenario.fmuinfo import (
@@ -145,7 +146,8 @@ class Plan:
     record_every: int  # macro steps between recorded rows
     macro_clock: Clock
     notes: tuple[str, ...] = field(default=())  # start-up and capability notes for the run log
-    warnings: tuple[str, ...] = field(default=())  # what a user must know even with --quiet
+    # per FMU file, what holds whatever the run (a pythonfmu FMU needs Python): said once per process
+    fmu_notes: tuple[tuple[str, str], ...] = field(default=())  # (FMU file, note)
     # Start-up (the paper's step 3): macro steps 0 .. startup_steps-1 are each repeated
     # `startup_sweeps` times from saved FMU states with relaxed windows (Link.window).
     startup_steps: int = 0
@@ -340,16 +342,18 @@ def build_plan(
     every = 1 if sc.record_interval is None else int(Fraction(sc.record_interval) / H)
 
     by_file: dict[str, list[str]] = {}
-    warnings: list[str] = []
+    needs_tool: dict[str, list[str]] = {}
     for c in sc.components:
         cap = capabilities.get(c.name, Capability())
         if cap.once_per_process:
             by_file.setdefault(str(c.fmu_path), []).append(c.name)
         if cap.needs_execution_tool:
-            warnings.append(
-                f'warning: {c.name}: its FMU needs its execution tool (needsExecutionTool="true"): '
-                "the run fails unless that tool is installed and licensed here"
-            )
+            needs_tool.setdefault(str(c.fmu_path), []).append(c.name)
+    fmu_notes = tuple(
+        (fmu, f"{', '.join(names)}: {Path(fmu).name} declares needsExecutionTool=\"true\": the run fails "
+         "unless that tool is installed here")
+        for fmu, names in needs_tool.items()
+    )  # fmt: skip
     exclusive = tuple(tuple(names) for names in by_file.values() if len(names) > 1)
     for names in exclusive:
         notes.append(
@@ -367,7 +371,7 @@ def build_plan(
         record_every=every,
         macro_clock=Clock.make(start, H, 1),
         notes=tuple(notes),
-        warnings=tuple(warnings),
+        fmu_notes=fmu_notes,
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
         exclusive=exclusive,

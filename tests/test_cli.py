@@ -273,3 +273,124 @@ def test_results_metadata_beside_the_csv(decay, tmp_path):
     s = meta["summary"]
     assert s["stop_reason"] == "finished" and s["macro_steps"] == 100
     assert sum(n for _, n in s["lateness_histogram"]) >= 100 and s["lateness"]["p50"] >= 0
+
+
+# -- an optional extra missing: one line naming the pip command, before any work ----------------
+
+BLOCKING = """import sys
+BLOCKED = set(sys.argv.pop(1).split(","))
+class Absent:  # as if these packages were not installed
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+sys.meta_path.insert(0, Absent())
+from master.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize(
+    "blocked, args, extra",
+    [
+        ("matplotlib", ["run", "{ssd}", "--plot", "x.png"], "plot"),
+        ("matplotlib", ["plot", "{csv}"], "plot"),
+        ("pyarrow", ["sweep", "{ssd}", "--vary", "d.lambda=-1:-2:2"], "sweep"),
+        ("distributed", ["sweep", "{ssd}", "--vary", "d.lambda=-1:-2:2"], "sweep"),
+        ("zarr", ["sweep", "{ssd}", "--vary", "d.lambda=-1:-2:2", "--series"], "sweep"),
+        ("matplotlib", ["sweep", "{ssd}", "--vary", "d.lambda=-1:-2:2", "--plot", "s.png"], "plot"),
+        ("matplotlib", ["bench", "{ssd}", "--quick"], "plot"),
+        ("distributed", ["bench", "{ssd}", "--quick"], "sweep"),
+    ],
+)
+def test_a_missing_extra_is_one_line_naming_pip_before_any_work(blocked, args, extra, decay, tmp_path):
+    (tmp_path / "run").mkdir()
+    csv = tmp_path / "x.csv"
+    csv.write_text("time,d.y\n0,1\n")
+    subs = {"ssd": str(decay), "csv": str(csv)}
+    r = subprocess.run(
+        [sys.executable, "-c", BLOCKING, blocked, *(a.format(**subs) for a in args)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path / "run",
+        timeout=120,
+    )
+    assert r.returncode == 1, r.stderr
+    (line,) = r.stderr.strip().splitlines()
+    assert f"pip install 'master[{extra}]'" in line and blocked in line, line
+    assert list((tmp_path / "run").iterdir()) == []  # no results folder, no plot, no CSV
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_the_extras_table_names_only_modules_its_extra_installs():
+    """master.extras.NEEDS against pyproject.toml: each module is one its extra's packages provide."""
+    import tomllib
+
+    from master.extras import NEEDS
+
+    project = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml").read_text())
+    declared = project["project"]["optional-dependencies"]
+    provides = {"dask[distributed]": {"distributed", "dask"}}
+    for command, _, extra, modules in NEEDS:
+        packages = [d.split(">")[0].split("=")[0] for d in declared[extra]]
+        names = set().union(*(provides.get(p, {p}) for p in packages))
+        assert set(modules) <= names, (command, extra, modules, packages)
+
+
+# -- messages that say what is wrong ------------------------------------------------------------
+
+
+def test_master_alone_lists_the_commands():
+    r = master()
+    assert r.returncode == 2 and r.stderr.startswith("usage: master")
+    for command in ("run", "validate", "info", "plot", "sweep", "tune", "build-fmus", "bench"):
+        assert f"\n    {command}" in r.stderr, command
+
+
+def test_an_unknown_option_shows_the_commands_usage(decay):
+    r = master("run", str(decay), "--stoptime", "1")
+    assert r.returncode == 2 and r.stderr.startswith("usage: master run ")
+    assert "master run: error: unrecognized arguments: --stoptime 1 (did you mean --stop-time?)" in r.stderr
+
+
+def test_an_fmu_or_a_results_file_is_not_a_scenario(tmp_path):
+    fmu = str(fmu_path("dahlquist"))
+    r = master("validate", fmu)
+    assert r.returncode == 1 and "an FMU, not a scenario" in r.stdout and "XML" not in r.stdout
+    assert f"`master info {fmu}` describes it" in r.stdout
+    csv = tmp_path / "x.csv"
+    csv.write_text("time,d.y\n0,1\n")
+    for command in ("run", "validate", "info"):
+        r = master(command, str(csv))
+        said = r.stderr + r.stdout
+        assert r.returncode == 1 and "x.csv: file: not a scenario: expected an .ssd or .ssp file" in said
+        assert "XML" not in said and "Traceback" not in said
+
+
+def test_a_folder_runs_the_scenario_it_holds(decay, tmp_path):
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    decay.rename(scene / "decay.ssd")
+    r = master("run", str(scene), "-o", str(tmp_path / "out.csv"), "-q")
+    assert r.returncode == 0, r.stderr
+    assert len(read_csv(str(tmp_path / "out.csv"))) == 101
+    (scene / "other.ssp").write_bytes(b"")
+    r = master("validate", str(scene))
+    assert r.returncode == 1
+    assert "scene: folder: holds several scenarios (decay.ssd, other.ssp): name one" in r.stdout
+    (scene / "SystemStructure.ssd").write_text((scene / "decay.ssd").read_text())
+    assert master("validate", str(scene)).stdout.strip() == f"{scene}: ok"  # the SSP name wins
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = master("run", str(empty))
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert (
+        "empty: folder: holds no scenario: expected SystemStructure.ssd or one .ssd or .ssp file" in r.stderr
+    )
+
+
+def test_info_names_fmi3_types():
+    r = master("info", str(fmu_path("alltypes", fmi=3)))
+    assert r.returncode == 0, r.stderr
+    types = {line.split()[0]: line.split()[3] for line in r.stdout.splitlines()[3:]}
+    assert types["y_float32"] == "Float32" and types["y_int64"] == "Int64" and types["y_uint8"] == "UInt8"
+    assert types["y_float64"] == "Float64" and types["y_boolean"] == "Boolean"

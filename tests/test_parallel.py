@@ -342,18 +342,22 @@ def test_declared_once_per_process_gets_a_worker_per_instance(tmp_path):
     assert_no_children()
 
 
-def test_an_fmu_that_needs_its_execution_tool_is_run_with_a_warning(tmp_path, caplog):
-    """needsExecutionTool="true": the run goes on (the tool may be there), and a warning that
-    --quiet does not silence names the component."""
-    sc, tool = lags(2), flagged(tmp_path, "needsExecutionTool")
-    first = dataclasses.replace(sc.components[0], fmu_path=tool)
-    sc = dataclasses.replace(sc, components=(first, *sc.components[1:]))
-    with caplog.at_level("WARNING", logger="master"):
-        assert len(api.run(sc, backend="serial").data) == 201
-    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
-        'warning: c0: its FMU needs its execution tool (needsExecutionTool="true"): the run fails unless '
-        "that tool is installed and licensed here"
-    ]
+def test_an_fmu_that_needs_its_execution_tool_is_run_with_a_note_said_once(tmp_path, caplog):
+    """needsExecutionTool="true" (every pythonfmu FMU): the run goes on (the tool may be there),
+    with a note naming the components of that FMU, said once per process however many runs use
+    it, and at INFO level: --quiet (WARNING) silences it."""
+    sc, tool = lags(3), flagged(tmp_path, "needsExecutionTool")
+    flagged_ones = tuple(dataclasses.replace(c, fmu_path=tool) for c in sc.components[:2])
+    sc = dataclasses.replace(sc, components=(*flagged_ones, *sc.components[2:]))
+    with caplog.at_level("INFO", logger="master"):
+        for backend in ("serial", "parallel", "serial"):
+            assert len(api.run(sc, backend=backend).data) == 201
+    said = [r for r in caplog.records if "needsExecutionTool" in r.getMessage()]
+    assert [(r.levelname, r.getMessage()) for r in said] == [
+        ("INFO", 'c0, c1: needsExecutionTool.fmu declares needsExecutionTool="true": the run fails unless '
+         "that tool is installed here")
+    ]  # fmt: skip
+    assert_no_children()
 
 
 def long_run(
@@ -439,17 +443,24 @@ def test_cli_exit_code_follows_the_signal(tmp_path):
     assert len(read_csv(str(out))) > 100
 
 
-def test_workers_die_with_a_killed_master(tmp_path):
-    """SIGKILL to the master (no clean-up possible there): the workers still end (PR_SET_PDEATHSIG),
-    and nothing is left in /dev/shm (the shared memory is anonymous)."""
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+def test_workers_die_with_a_killed_master_and_its_folders_go(tmp_path, backend):
+    """SIGKILL to the master alone (no clean-up possible there): the workers still end
+    (PR_SET_PDEATHSIG), nothing is left in /dev/shm (the shared memory is anonymous), and the
+    janitor removes the run's temporary folders (extracted FMUs, raw results) from TMPDIR; the
+    rows written to the CSV file stay."""
     shm = shm_entries()
-    proc, children, _ = long_run(tmp_path)
-    assert len(children) >= 2
+    proc, children, out = long_run(tmp_path, backend)
+    assert len(children) >= 2  # the workers and the janitor
+    assert list(tmp_path.glob("master-run-*")) and list(tmp_path.glob("master_results_*"))
     proc.kill()
     proc.communicate(timeout=20)
-    gone, alive = psutil.wait_procs(children, timeout=3)
+    gone, alive = psutil.wait_procs(children, timeout=10)
     assert alive == []
     assert shm_entries() <= shm
+    assert list(tmp_path.glob("master-run-*")) == [] and list(tmp_path.glob("master_results_*")) == []
+    data = read_csv(str(out))
+    assert len(data) > 10 and np.all(np.diff(data["time"]) > 0)
 
 
 def test_auto_decides_from_the_timed_trials():
@@ -491,4 +502,34 @@ def test_pinned_and_paced_workers_give_the_same_results():
         assert all(np.array_equal(free[k], r.data[k]) for k in free.dtype.names)
     assert paced.summary.wall_time > 0.09 and paced.summary.lateness is not None
     assert paced.summary.overruns is not None
+    assert_no_children()
+
+
+class _Hangs:
+    """A worker task whose every command hangs (as an FMU that never returns)."""
+
+    def setup(self, where):
+        pass
+
+    def command(self, op, a, b, where):
+        time.sleep(3600)
+
+    def close(self):
+        pass
+
+
+def test_a_killed_worker_is_reaped_so_the_failure_does_not_wait_for_its_answer():
+    """Hang detection: the supervisor kills the hung worker and the others settle; a killed worker
+    not yet reaped looked alive to `settle`, which then waited SETTLE_S (2 s) for its answer on
+    top of the step timeout. `kill` reaps it: its exit code is known at once."""
+    from master.backends.worker import WorkerPool
+
+    pool = WorkerPool([(["a"], _Hangs), (["b"], _Hangs)], step_timeout=60)
+    try:
+        pool.start(1)
+        pool.kill(0)
+        assert pool.procs[0].exitcode == -signal.SIGKILL
+        assert pool.procs[1].exitcode is None  # the other one is still in its command
+    finally:
+        pool.close()
     assert_no_children()

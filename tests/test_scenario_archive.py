@@ -189,6 +189,21 @@ def test_a_source_name_too_long_for_the_file_system(tmp_path: Path):
     assert any("not a usable file name" in str(p) for p in problems), [str(p) for p in problems]
 
 
+def test_a_parameter_file_name_too_long_is_one_problem_at_its_binding(tmp_path: Path):
+    """A ParameterBinding source= of 302 characters (a mutation campaign's find): one problem naming
+    the file, the binding and what is wrong, not an OSError (File name too long)."""
+    ssd = (SCENE / "oscillator.ssd").read_text()
+    assert 'source="mass1.ssv"' in ssd
+    (tmp_path / "x.ssd").write_text(ssd.replace('source="mass1.ssv"', f'source="{"p" * 298}.ssv"'))
+    shutil.copy(SCENE / "coupling.ssv", tmp_path / "coupling.ssv")
+    problems = [str(p) for p in validate(tmp_path / "x.ssd")]
+    (bad,) = [p for p in problems if "usable" in p]
+    assert bad.startswith(f"{tmp_path / 'x.ssd'}:") and "ssd:ParameterBinding" in bad, bad
+    assert f'source "{"p" * 60}..." (302 characters): not a usable file name (File name too long)' in bad
+    with pytest.raises(ScenarioError):
+        load(tmp_path / "x.ssd")
+
+
 def test_a_zip_bomb_is_refused_unpacked(tmp_path: Path, cache: Path):
     members = oscillator_members()
     members["resources/zeros.bin"] = bytes(100 << 20)  # 100 MiB of zeros pack into about 100 KiB

@@ -34,6 +34,7 @@ STOP = -1  # op: leave the loop
 MSG_BYTES = 2048  # room for one error message per worker
 SPIN_S = 100e-6  # s: how long a waiting process polls before it sleeps (see WorkerPool)
 POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
+KILL_WAIT_S = 1.0  # s at most for a SIGKILLed worker to be reaped (it takes milliseconds)
 
 IDLE, RUNNING, FAILED = 0, 1, 2  # worker states in shared memory
 
@@ -277,7 +278,7 @@ class WorkerPool:
                 if supervise is not None:
                     poll = supervise()
                 elif time.monotonic() > deadline:
-                    self.procs[i].kill()  # a hung FMU never returns to read the stop command
+                    self.kill(i)
                     raise self._failure(
                         i, f"hang: no answer within the step timeout of {self.step_timeout:g} s"
                     )
@@ -301,8 +302,10 @@ class WorkerPool:
         self.pending = []
 
     def kill(self, i: int) -> None:
-        """SIGKILL worker i (a hung FMU never returns to read the stop command)."""
+        """SIGKILL worker i (a hung FMU never returns to read the stop command) and reap it, so that
+        `settle` does not wait for its answer."""
         self.procs[i].kill()
+        self.procs[i].join(KILL_WAIT_S)
 
     def _check_alive(self) -> None:
         for j, p in enumerate(self.procs):

@@ -11,7 +11,8 @@ hung workers and for signals, and sleeps in between.
 A worker that crashes (segfault, abort), hangs past the step timeout, or stops on an FMU error,
 a NaN/Inf or a diverging output ends the run with one SimulationError naming the component, the
 simulation time and the cause; the others are cancelled, every completed row is written and no
-process is left behind (workers also die with the master, PR_SET_PDEATHSIG). Times in seconds.
+process is left behind (workers also die with the master, PR_SET_PDEATHSIG; should the master be
+SIGKILLed, master.backends.janitor removes its temporary folders). Times in seconds.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 from master.backends.component import SimulationError, open_fmu, output_names
 from master.backends.driver import signals_deferred
 from master.backends.in_process import initialize_sweeps
+from master.backends.janitor import Janitor
 from master.backends.worker import WorkerFailure, WorkerPool, cpu_count
 from master.fmu import Fmu, FmuError, read_description, variables_of
 from master.recorder import Recorder
@@ -208,6 +210,7 @@ class WorkerBackend:
         self.memory: Memory | None = None
         self.pool: WorkerPool | None = None
         self.tmp: str | None = None
+        self.janitor: Janitor | None = None  # removes self.tmp and the raw results if the master is killed
         self.lib = native.library()
         self.ring_rows = RING_ROWS[1]
         self.position = 0  # macro steps every component has completed
@@ -230,7 +233,9 @@ class WorkerBackend:
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER
         self.memory["stopper"][:, 0] = native.NEVER
+        self.janitor = Janitor()  # before the workers: they hold its pipe too, and die with the master
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
+        self.janitor.watch(self.tmp)
         cpu = (lambda w: self.cpus[w % len(self.cpus)]) if self.cpus else (lambda w: None)
         processors = len(set(self.cpus)) if self.cpus else cpu_count()
         spin = SPIN_S if len(self.groups) <= processors else 0.0  # a spinner must not take a peer's CPU
@@ -254,7 +259,8 @@ class WorkerBackend:
     def initialize(self, recorder: Recorder) -> None:
         """The in-process initialisation (master.backends.in_process.initialize), component by
         component in the worker that holds it; records the row at the start time."""
-        assert self.pool is not None
+        assert self.pool is not None and self.janitor is not None
+        self.janitor.watch(recorder.tmpdir)
         t0 = float(self.plan.scenario.start_time)
         try:
             initialize_sweeps(len(self.names), self._sweep, lambda: self.pool.run(OP_EXIT_INIT))
@@ -432,3 +438,6 @@ class WorkerBackend:
             if self.tmp is not None:
                 shutil.rmtree(self.tmp, ignore_errors=True)
                 self.tmp = None
+            if self.janitor is not None:
+                self.janitor.close()
+                self.janitor = None

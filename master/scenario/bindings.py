@@ -15,7 +15,7 @@ from lxml import etree
 
 from . import xmlio
 from .context import Context
-from .fmuinfo import FmuInfo, lookup, no_element
+from .fmuinfo import FmuInfo, SourceError, file_at, lookup, no_element
 from .model import Value
 from .problems import NS_SSD, NS_SSV, Problems
 from .values import BadValue, from_ssv, from_string, settable
@@ -79,7 +79,11 @@ def _ssv_file(ctx: Context, binding: etree._Element, source: str) -> tuple[etree
     if "://" in source or source.startswith("file:"):
         ctx.at(binding, f'unsupported URI "{source}": use a path relative to the .ssd')
         return None
-    path = (ctx.base / source).resolve()
+    try:
+        path, found = file_at(ctx.base, source)
+    except SourceError as err:
+        ctx.at(binding, str(err))
+        return None
     if ctx.inside is not None and not path.is_relative_to(ctx.inside.resolve()):
         ctx.at(binding, f'source "{source}" points outside the archive')
         return None
@@ -88,7 +92,7 @@ def _ssv_file(ctx: Context, binding: etree._Element, source: str) -> tuple[etree
         if ctx.inside is None
         else f"{ctx.shown.rsplit('!/', 1)[0]}!/{source}"
     )
-    if not path.is_file():
+    if not found:
         ctx.at(binding, f'parameter file "{source}" not found')
         return None
     problems = Problems()

@@ -373,11 +373,7 @@ def resolve_source(source: str, base: Path, inside: Path | None = None, built: d
         return _project(source[len(PROJECT_SCHEME) :], built)
     if "://" in source or source.startswith("file:"):
         raise SourceError(f'unsupported URI "{source}": use a relative path or project:NAME')
-    try:
-        candidate = (base / source).resolve()
-        found = candidate.is_file()
-    except (OSError, ValueError) as err:  # a name too long for the file system, a NUL byte
-        raise SourceError(f'source "{source[:60]}": not a usable file name ({err})') from None
+    candidate, found = file_at(base, source)
     if inside is not None and not candidate.is_relative_to(inside.resolve()):
         raise SourceError(f'source "{source}" points outside the archive')
     if found:
@@ -385,6 +381,20 @@ def resolve_source(source: str, base: Path, inside: Path | None = None, built: d
     if source in project_fmu_names():
         return _project(source, built)
     raise SourceError(f'FMU file "{source}" not found (looked for {candidate})')
+
+
+def file_at(base: Path, source: str) -> tuple[Path, bool]:
+    """The path a file name from a scenario means (relative to `base`) and whether it is a file;
+    SourceError, not OSError, for a name the file system refuses (too long, a NUL byte)."""
+    try:
+        candidate = (base / source).resolve()
+        return candidate, candidate.is_file()
+    except (OSError, ValueError) as err:
+        shown = source if len(source) <= 60 else f"{source[:60]}..."
+        why = err.strerror if isinstance(err, OSError) and err.strerror else err
+        raise SourceError(
+            f'source "{shown}" ({len(source)} characters): not a usable file name ({why})'
+        ) from None
 
 
 def _project(name: str, built: dict | None) -> Path:

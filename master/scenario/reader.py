@@ -24,6 +24,7 @@ from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError
 from .xmlio import tag
 
 FMU_TYPE = "application/x-fmu-sharedlibrary"
+SCENARIO_SUFFIXES = (".ssd", ".ssp")
 # ssd:Connector kind -> FMU causalities it may stand for
 KIND_CAUSALITY = {
     "input": {"input"},
@@ -65,11 +66,45 @@ def read(path: str | Path, overrides: dict[str, str] | None = None) -> tuple[Sce
     return (scenario if not problems.items else None), problems.items
 
 
-def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario | None:
+def scenario_file(path: Path, problems: Problems) -> Path | None:
+    """The scenario file `path` names: itself if an .ssd or .ssp file, else the one a folder holds
+    (its SystemStructure.ssd, or its only .ssd or .ssp file); None with a problem saying why not."""
     shown = str(path)
-    if not path.is_file():
-        problems.add(shown, None, "scenario", "no such file")
+    try:
+        if path.is_dir():
+            if (path / archive.SSD_NAME).is_file():
+                return path / archive.SSD_NAME
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() in SCENARIO_SUFFIXES and p.is_file())
+            if len(found) == 1:
+                return found[0]
+            names = ", ".join(p.name for p in found)
+            why = f"holds several scenarios ({names}): name one" if found else "holds no scenario"
+            problems.add(
+                shown, None, "folder", f"{why}: expected {archive.SSD_NAME} or one .ssd or .ssp file"
+            )
+            return None
+        if not path.is_file():
+            problems.add(shown, None, "scenario", "no such file")
+            return None
+    except OSError as err:  # a name too long for the file system, a folder that cannot be listed
+        problems.add(shown, None, "scenario", f"cannot read: {err.strerror or err}")
         return None
+    if path.suffix.lower() == ".fmu":
+        problems.add(shown, None, "file", f"an FMU, not a scenario: `master info {path}` describes it; "
+                     "a scenario (.ssd or .ssp) that names it runs it")  # fmt: skip
+        return None
+    if path.suffix.lower() not in SCENARIO_SUFFIXES:
+        problems.add(shown, None, "file", "not a scenario: expected an .ssd or .ssp file")
+        return None
+    return path
+
+
+def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario | None:
+    found = scenario_file(path, problems)
+    if found is None:
+        return None
+    path = found
+    shown = str(path)
     inside = None
     ssd = path
     if path.suffix.lower() == ".ssp":
