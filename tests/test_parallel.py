@@ -222,11 +222,6 @@ def test_failure_is_reported_with_component_time_and_cause(mode, backend, tmp_pa
     assert shm_entries() <= shm
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="a worker publishes its components' step counts and FMU time only when its kernel run "
-    "returns (CompiledPlan.publish_stats): a dead or killed worker's are lost (issue 18, kernel change)",
-)
 @pytest.mark.parametrize("backend", ["serial", "parallel"])
 @pytest.mark.parametrize("mode", [1, 2], ids=["segfault", "hang"])
 def test_the_summary_of_a_crashed_run_counts_the_steps_done_before(mode, backend):

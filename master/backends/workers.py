@@ -423,8 +423,8 @@ class WorkerBackend:
         if self.memory is None:
             return {n: 0 for n in self.names}, {n: 0.0 for n in self.names}
         steps, ft = self.memory["steps"], self.memory["fmu_time"]
-        return {n: int(steps[i]) for i, n in enumerate(self.names)}, {
-            n: float(ft[i]) for i, n in enumerate(self.names)
+        return {n: int(steps[i, 0]) for i, n in enumerate(self.names)}, {
+            n: float(ft[i, 0]) for i, n in enumerate(self.names)
         }
 
     def close(self) -> None:

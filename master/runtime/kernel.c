@@ -801,8 +801,8 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
         if (c->n_out_string + c->n_out_binary && c->reads[m] && (st = read_strings(k, ci, c->strings, j, j + 1)) != MK_DONE)
             return st;
-        c->fmu_time += 1e-9 * (double)(now_ns() - t0);
-        c->steps++;
+        *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+        (*c->steps)++;
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
         if (terminate) { /* completed, and the end: at a macro step's end with it, else at its start
                           * (also in start-up, whose sweeps would step the FMU again) */
@@ -859,7 +859,7 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
     if (c->resample_outputs) code = read_outputs(k, ci, row, j - 1, j);
     if (code == MK_DONE && c->resample_texts) code = read_strings(k, ci, c->strings, j - 1, j);
     mark_idle(k);
-    c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     if (code != MK_DONE) return code;
     return c->resample_outputs ? check_sample(k, ci, row, j) : MK_DONE;
 }
@@ -971,7 +971,7 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
         return fail(k, MK_FMI_ERROR, ci, call, st, 0);
     if (c->n_out && (st = read_outputs(k, ci, c->hist, 0, 0)) != MK_DONE) return st;
     if (c->n_out_string + c->n_out_binary && (st = read_strings(k, ci, c->strings, 0, 0)) != MK_DONE) return st;
-    c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     return MK_DONE;
 }
 
@@ -1022,7 +1022,7 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         } else
             st = get_scalar(c, rec->kind, rec->store, rec->index, &row[rec->column], &call);
         mark_idle(k);
-        c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+        *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         if (st > STATUS_OK || st < 0) {
             fail(k, st < 0 ? MK_TOO_LONG : MK_FMI_ERROR, rec->component, call, st < 0 ? 0 : st, (n + 1) * c->ratio);
             k->error.variable = r;

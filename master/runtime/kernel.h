@@ -224,8 +224,9 @@ typedef struct {
     char *string_u; /* [ratio][n_in_string + n_in_binary][MK_STRING_SLOT] */
     /* written by the kernel */
     void *saved_state;
-    int64_t steps;
-    double fmu_time;
+    /* counted as they happen, in shared memory: a worker that dies or hangs leaves its counts */
+    int64_t *steps;   /* communication steps */
+    double *fmu_time; /* wall time inside FMI calls, s */
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

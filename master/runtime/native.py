@@ -219,8 +219,8 @@ class Component(C.Structure):
         ("string_links", C.POINTER(Link)),
         ("string_u", C.POINTER(C.c_char)),
         ("saved_state", _p),
-        ("steps", _i64),
-        ("fmu_time", _f64),
+        ("steps", C.POINTER(_i64)),
+        ("fmu_time", C.POINTER(_f64)),
     ]
 
 

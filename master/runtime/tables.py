@@ -162,8 +162,8 @@ def layout(
     out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
     n_estimates = max(sum(len(lk.inputs) for lk in plan.links), 1)
     out["estimates"] = ((n_estimates, native.ERROR_FIELDS), "float64")  # see mk_link
-    out["steps"] = ((nc,), "int64")
-    out["fmu_time"] = ((nc,), "float64")
+    out["steps"] = ((nc, 8), "int64")  # [i, 0]: component i's; a cache line each (workers write them)
+    out["fmu_time"] = ((nc, 8), "float64")
     return out
 
 
@@ -270,6 +270,9 @@ class CompiledPlan:
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
         c.ratio = pc.ratio
+        i = self.names.index(pc.name)
+        c.steps = _ptr(self.memory["steps"][i], C.c_int64)
+        c.fmu_time = _ptr(self.memory["fmu_time"][i], C.c_double)
         out = self.outs[pc.name]
         hist, previous = self.memory[f"hist:{pc.name}"], self.memory[f"previous:{pc.name}"]
         c.n_out, c.cap = len(out), len(hist)
@@ -563,7 +566,6 @@ class CompiledPlan:
             code = self.lib.mk_run(self.ref, n_from, n_to, budget, C.byref(n_next))
         finally:
             self.position = n_next.value
-            self.publish_stats()
         if code == native.ABORTED:
             raise Cancelled(f"cancelled before macro step {n_next.value}")
         if code == native.STOPPED:
@@ -594,16 +596,9 @@ class CompiledPlan:
         """(communication steps, wall time inside FMI calls in s) per component, as published."""
         steps, fmu_time = self.memory["steps"], self.memory["fmu_time"]
         return (
-            {n: int(steps[i]) for i, n in enumerate(self.names)},
-            {n: float(fmu_time[i]) for i, n in enumerate(self.names)},
+            {n: int(steps[i, 0]) for i, n in enumerate(self.names)},
+            {n: float(fmu_time[i, 0]) for i, n in enumerate(self.names)},
         )
-
-    def publish_stats(self) -> None:
-        """Communication steps and wall time inside FMI calls of the local components, into memory."""
-        steps, fmu_time = self.memory["steps"], self.memory["fmu_time"]
-        for i, c in enumerate(self.components):
-            if c.local:
-                steps[i], fmu_time[i] = c.steps, c.fmu_time
 
     # -- errors ---------------------------------------------------------------------------------
     def error(self, initial: bool = False) -> SimulationError:
