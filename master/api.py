@@ -13,6 +13,7 @@ import os
 from fractions import Fraction
 from pathlib import Path
 
+from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
 from master.fmu import FmuError, read_description, variables_of
@@ -217,7 +218,9 @@ def run(
     On failure, SIGINT, SIGTERM or SIGHUP a SimulationError is raised after the rows computed so
     far are written; it carries `.result` (a RunResult) and, when a signal stopped the run,
     `.signal` (its number).
+    A `plot` without matplotlib installed raises extras.MissingExtra before the run.
     """
+    extras.require("run", {"plot": plot})
     if isinstance(scenario, Scenario):
         sc = apply_overrides(scenario, stop_time, record, set_values, output_interval, record_coupling_errors)
     else:  # the reader converts and checks --set values against the FMUs

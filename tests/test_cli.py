@@ -321,11 +321,28 @@ def test_a_missing_extra_is_one_line_naming_pip_before_any_work(blocked, args, e
     assert not list(tmp_path.glob("*.png"))
 
 
+def test_the_python_api_refuses_a_plot_without_matplotlib_before_the_run(decay, tmp_path):
+    prelude = BLOCKING.split("from master.cli")[0].replace("sys.argv.pop(1)", "'matplotlib'")
+    code = prelude + (
+        "import master\n"
+        "from master.extras import MissingExtra\n"
+        "try:\n"
+        f"    master.run({str(decay)!r}, output='out.csv', plot='out.png')\n"
+        "except MissingExtra as e:\n"
+        "    print(e)\n"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120
+    )
+    assert r.returncode == 0, r.stderr
+    assert "pip install 'master[plot]'" in r.stdout and list(tmp_path.iterdir()) == []
+
+
 def test_the_extras_table_names_only_modules_its_extra_installs():
     """master.extras.NEEDS against pyproject.toml: each module is one its extra's packages provide."""
-    import tomllib
-
     from master.extras import NEEDS
+
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11 on
 
     project = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml").read_text())
     declared = project["project"]["optional-dependencies"]
