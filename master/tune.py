@@ -27,12 +27,9 @@ The search, in the bench's configuration space (master.evidence.bench):
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import logging
 import math
 import statistics
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -57,6 +54,11 @@ MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
 FINALISTS = 4  # families timed again at the end
 FLOOR = 50  # no macro step below the scene's own (and its baseline's) divided by this
 PRUNE = 2.0  # a family's search goes no lower than steps modelled to cost this times the best so far
+RESOLVED = 10  # a best-effort reference checks a tolerance this many times its last change, or more
+
+
+class TuneError(ValueError):
+    """The scene cannot be tuned to the tolerance (no reference good enough to check it)."""
 
 
 @dataclass
@@ -194,7 +196,7 @@ class _Pilot:
                 return Trial(c, False, math.inf, f"unstable by the linear analysis (rho {rho:.4f})", rho)
         scene = bench.apply(self.sc, self.p, c)
         try:
-            with _quiet():
+            with bench.quiet():
                 res = run(scene, backend="in-process")
         except SimulationError as e:
             return Trial(c, False, math.inf, str(e).split(" (hint")[0], rho)
@@ -288,9 +290,23 @@ def tune(
     rounds: int = ROUNDS,
 ) -> TuneResult:
     """Search the scene's configurations for the fastest that meets `tolerance` (see the module);
-    `rounds` of coordinate search at most."""
+    `rounds` of coordinate search at most. Raises TuneError where the scene has no reference
+    that resolves the tolerance."""
+    p = bench.profile_for(scenario)
+    with bench.said_once(bench.base_scene(scenario, p)):  # dozens of runs: each warning said once
+        return _tune(scenario, tolerance, real_time_budget, pilot_time, repeats, rounds)
+
+
+def _tune(
+    scenario: Scenario,
+    tolerance: float,
+    real_time_budget: float | None,
+    pilot_time: Fraction | None,
+    repeats: int,
+    rounds: int,
+) -> TuneResult:
     from master.api import run
-    from master.evidence.reference import reference
+    from master.evidence.reference import ReferenceFailed, solve
 
     p = bench.profile_for(scenario)
     if pilot_time is not None:
@@ -300,7 +316,15 @@ def tune(
         grid = [h for h in ladder(span) if h <= span / 100 and (h / p.record_interval).denominator == 1]
         p = dataclasses.replace(p, record_interval=grid[-1]) if grid else p
     base = bench.base_scene(scenario, p)
-    ref = reference(base)
+    try:
+        with bench.quiet():
+            solved = solve(base)
+    except ReferenceFailed as e:
+        raise TuneError(str(e)) from None
+    if not solved.converged and solved.uncertainty * RESOLVED > tolerance:
+        raise TuneError(f"{scenario.path}: a tolerance of {tolerance:g} cannot be checked against "
+                        f"{solved.what}")  # fmt: skip
+    ref = solved.trajectory
     lin = None if p.generic else bench.linearize_scene(scenario, p)  # a scene of the project's FMUs
     horizon = base.stop_time - base.start_time
     pilot = _Pilot(scenario, p, ref, tolerance, lin, horizon)
@@ -346,28 +370,16 @@ def tune(
     multi = [ch for ch in ranked if ch.trial.config.ratio > 1]
     for ch in _unique(ranked[:FINALISTS] + single[:1] + multi[:1]):
         scene = bench.apply(scenario, p, ch.trial.config)
-        with _quiet():
+        with bench.quiet():
             ch.timed = [run(scene, backend="serial").summary.wall_time for _ in range(repeats)]
     timed = sorted((ch for ch in choices if ch.timed), key=lambda ch: ch.wall_time)
     rest = sorted((ch for ch in choices if not ch.timed), key=lambda ch: ch.wall_time)
     best = timed[0] if timed else None
-    result = TuneResult(scenario, p, tolerance, float(horizon), _reference_kind(scenario), timed + rest,
+    result = TuneResult(scenario, p, tolerance, float(horizon), solved.what, timed + rest,
                         failed, best, real_time_budget, pilots=len(pilot.trials))  # fmt: skip
     if best is not None and lin is not None:
         result.stable_limit = _stable_limit(lin, p, best.trial.config)
     return result
-
-
-@contextlib.contextmanager
-def _quiet() -> Iterator[None]:
-    """Pilot runs without the run's notes (start-up, backend): a search makes dozens."""
-    log = logging.getLogger("master")
-    level = log.level
-    log.setLevel(logging.WARNING)
-    try:
-        yield
-    finally:
-        log.setLevel(level)
 
 
 def _unique(choices: list[Choice]) -> list[Choice]:
@@ -384,14 +396,6 @@ def _stable_limit(lin, p: Profile, c: Config) -> float | None:
         )
     except ValueError:
         return None
-
-
-def _reference_kind(sc: Scenario) -> str:
-    from master.evidence.reference import has_model_exchange
-
-    if has_model_exchange(sc):
-        return "the Model Exchange reference (Radau, rtol 1e-10)"
-    return "a converged co-simulation (successive halving to 1e-6)"
 
 
 def tuned_scenario(result: TuneResult) -> Scenario:
