@@ -123,8 +123,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="largest error allowed, relative to each variable's range (e.g. 1e-3)")  # fmt: skip
     t.add_argument("--real-time-budget", type=_positive, metavar="F",
                    help="wall seconds allowed per simulated second (1: real time)")  # fmt: skip
-    t.add_argument("--pilot-time", metavar="T", help="simulated s of each pilot run (default: the bench's)")
-    t.add_argument("--repeats", type=int, default=3, help="timed runs of each finalist (median)")
+    t.add_argument("--pilot-time", metavar="T", help="simulated s of each pilot run (default: the stop time)")
+    t.add_argument("--repeats", type=int, default=3,
+                   help="interleaved timings of the two cheapest, at least (3 or more)")  # fmt: skip
     t.add_argument("--rounds", type=int, default=None, metavar="N",
                    help="rounds of coordinate search at most (default 12; fewer: quicker)")  # fmt: skip
     t.add_argument("-o", "--out", metavar="FILE",
@@ -401,12 +402,10 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
     sc = api.load_scenario(source)
     rounds = tune.ROUNDS if args.rounds is None else args.rounds
     result = tune.tune(sc, args.tolerance, args.real_time_budget, pilot, args.repeats, rounds)
-    text = tune.report(result)
     report = out.with_suffix(".txt")
-    report.write_text(text + "\n")
-    if not quiet:  # the families that met the tolerance nowhere are in the report file
-        print(text.split("\n\nfamilies that met it at no step")[0])
-        print(f"({len(result.failed)} families met it at no step tried: see the report)")
+    report.write_text(tune.report(result) + "\n")
+    if not quiet:  # the detail is in the report
+        print(tune.summary(result, report))
     if result.best is None:
         print(f"error: no configuration tried meets {args.tolerance:g}; report: {report}", file=sys.stderr)
         return 1
@@ -417,7 +416,7 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
     write_settings(sc, tune.tuned_scenario(result), out, f"tuned by master tune to {args.tolerance:g}: "
                    f"{result.best.family}")  # fmt: skip
     if not quiet:
-        print(f"wrote {out} and {report}")
+        print(f"wrote {out}")
     return 0
 
 

@@ -2,9 +2,10 @@
 
 The error of a configuration is the bench's measure (master.evidence.errors): the worst, over the
 scene's error variables, of the largest deviation from the reference solution (Model Exchange, or
-a converged co-simulation) on the record grid, relative to the variable's range. It is measured,
-not estimated: each candidate is a pilot run over the bench horizon of the scene
-(`Profile.stop_time`, or `pilot_time`), compared with the reference.
+a converged co-simulation) relative to the variable's range. It is measured, not estimated: each
+candidate is a pilot run over the scene's whole stop time (`--pilot-time` shortens it), compared
+with the reference on the finest grid the candidates produce (`check_grid`: every macro step of
+each candidate at least as coarse as the scene's smallest component step).
 
 The search, in the bench's configuration space (master.evidence.bench):
 1. families: single-rate (every component with the mechanics solver), and for every control step
@@ -15,30 +16,34 @@ The search, in the bench's configuration space (master.evidence.bench):
    and solver steps, control solver, order, ratio, mechanics solver). A scene without a bench
    profile varies its extrapolation order and coupling.
 2. per family, the largest macro step of a ladder of round steps (1, 1.25, 2, 2.5, 4, 5 x 10^k dividing
-   the record interval) that meets the tolerance: galloping from the best step found so far, then
-   bisection (error grows with the step). A step the linear stability analysis finds unstable is
-   not run; the search goes no lower than steps whose modelled cost is PRUNE times the best's.
-   The cost model (`_Pilot.cost`) is learned from the pilot runs: the least time per step of
-   each component with each solver inside its FMU calls, and of the master per macro step.
-3. the four cheapest families by the model, and the cheapest single-rate and multirate ones, are
-   timed (serial backend, median of `repeats` runs); the fastest wins. With a real-time budget F
-   it must also step at most F s of wall time per simulated second.
+   the record interval and the stop time) that meets the tolerance: galloping from the best step
+   found so far, then bisection (error grows with the step). A step the linear stability analysis
+   finds unstable is not run; the search goes no lower than steps whose modelled cost is PRUNE
+   times the best's.
+3. the ranking: a cost model (`CostModel`): the work a configuration does per simulated second,
+   counted from its schedule (macro steps, and each component's FMU calls by kind: solver, solver
+   steps per call, polynomial inputs), times the time each kind costs, calibrated once after the
+   search from the pilot runs (the median time per call of each kind: a load spike in a minority
+   of the runs moves nothing). Timings never reorder it, so load cannot flip the choice.
+4. the two cheapest by the model are timed in turn (serial backend) until one is faster outside
+   the noise (`decide`); where they stay within it, they are equal and the cheaper by the model
+   wins. With a real-time budget F the winner must also step at most F s of wall time per
+   simulated second.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import logging
 import math
 import statistics
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from fractions import Fraction
+from pathlib import Path
 
 from master.evidence import bench
 from master.evidence.bench import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, Config, Profile
-from master.evidence.errors import Trajectory, as_trajectory, compare
+from master.evidence.errors import as_trajectory, compare
+from master.evidence.reference import Reference
 from master.scenario.model import Scenario
 
 MANTISSAS = (
@@ -54,9 +59,16 @@ VARIANTS_OF = 3  # per round, the cheapest families that meet the tolerance get 
 ROUNDS = 12  # rounds of that coordinate search
 CONTROL_SOLVERS = (EULER, AB2, AB3, SI_EULER, SI_MIDPOINT)
 MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
-FINALISTS = 4  # families timed again at the end
+MIN_ROUNDS, MAX_ROUNDS = 3, 15  # interleaved timings of the two cheapest: at least, at most
+SIGNIFICANT = 0.05  # a ratio of medians nearer 1 than this is no difference
 FLOOR = 50  # no macro step below the scene's own (and its baseline's) divided by this
+MAX_POINTS = 200_000  # compared times per variable at most
 PRUNE = 2.0  # a family's search goes no lower than steps modelled to cost this times the best so far
+RESOLVED = 10  # a best-effort reference checks a tolerance this many times its last change, or more
+
+
+class TuneError(ValueError):
+    """The scene cannot be tuned to the tolerance (no reference good enough to check it)."""
 
 
 @dataclass
@@ -76,13 +88,13 @@ class Choice:
 
     family: str
     trial: Trial
-    timed: list[float] = field(default_factory=list)  # final wall times (serial backend)
-
-    cost: float = math.inf  # modelled wall time (s) over the pilot horizon (`_Pilot.cost`)
+    cost: float = math.inf  # modelled wall s per simulated s (`CostModel`)
+    timed: list[float] = field(default_factory=list)  # wall times (s) over the horizon, serial backend
 
     @property
-    def wall_time(self) -> float:
-        return statistics.median(self.timed) if self.timed else self.cost
+    def wall_time(self) -> float | None:
+        """Median timed wall time over the horizon (s); None if not timed."""
+        return statistics.median(self.timed) if self.timed else None
 
 
 @dataclass
@@ -91,19 +103,24 @@ class TuneResult:
     profile: Profile
     tolerance: float
     horizon: float  # s: the pilot runs' simulated time
+    grid: float  # s: the spacing of the times the errors are compared at
     reference: str  # what the errors are measured against
-    choices: list[Choice]  # every family that met the tolerance, fastest first once timed
+    choices: list[Choice]  # every family that met the tolerance, cheapest by the model first
     failed: list[tuple[str, Trial, str]]  # families that met it at no step tried: the last trial, why
     best: Choice | None
     budget: float | None  # wall s per simulated s allowed
     pilots: int = 0  # pilot runs made
     stable_limit: float | None = None  # the winner's largest linearly stable macro step (s)
+    runner_up: Choice | None = None  # the one it was timed against
+    verdict: str = ""  # how the timing of the two decided
+    costs: dict[tuple, float] = field(default_factory=dict)  # the model's calibration: s per call kind
 
     @property
     def within_budget(self) -> bool:
-        return self.best is not None and (
-            self.budget is None or self.best.wall_time <= self.budget * self.horizon
-        )
+        if self.best is None:
+            return False
+        wall = self.best.wall_time if self.best.wall_time is not None else self.best.cost * self.horizon
+        return self.budget is None or wall <= self.budget * self.horizon
 
 
 def ladder(record_interval: Fraction) -> list[Fraction]:
@@ -165,21 +182,77 @@ def _name(c: Config) -> str:
     return f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}{how}"
 
 
-class _Pilot:
-    """Runs configurations over the pilot horizon and measures their errors (each once), and
-    models their cost."""
+MACRO = ("master",)  # the call kind of the master's own work per macro step
 
-    def __init__(self, sc: Scenario, p: Profile, ref: Trajectory, tolerance: float, lin, horizon: Fraction):
-        self.sc, self.p, self.ref, self.tolerance, self.lin = sc, p, ref, tolerance, lin
-        self.horizon = horizon
+
+def call_kind(scene: Scenario, comp) -> tuple:
+    """What one communication step of a component costs by: the component, its solver, its solver
+    steps per communication step, polynomial inputs or not."""
+    internal = float(comp.parameters.get("internal_step", 0.0) or 0.0)
+    substeps = round(float(scene.macro_step) / comp.step_ratio / internal) if internal > 0 else 1
+    return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs
+
+
+def work(scene: Scenario) -> dict[tuple, float]:
+    """The counted work of a scene per simulated second: its macro steps (MACRO) and each
+    component's communication steps by `call_kind`."""
+    per_second = 1 / scene.macro_step
+    out = {MACRO: float(per_second)}
+    for comp in scene.components:
+        kind = call_kind(scene, comp)
+        out[kind] = out.get(kind, 0.0) + float(comp.step_ratio * per_second)
+    return out
+
+
+class CostModel:
+    """Wall time per simulated second of a scene: its counted work (`work`) times the time each
+    kind of call takes. The times are learned from runs (`learn`: the time inside each component's
+    FMU calls per communication step, and the master's time per macro step) and fixed by
+    `calibrate`: per kind the median over the runs, so that load on a minority of them moves
+    nothing and a ranking by `cost` is the same whatever the timings' noise."""
+
+    def __init__(self) -> None:
+        self.samples: dict[tuple, list[float]] = {}
+
+    def learn(self, summary, scene: Scenario) -> None:
+        for comp in scene.components:
+            n = summary.steps.get(comp.name, 0)
+            if n and comp.name in summary.fmu_time:
+                self.samples.setdefault(call_kind(scene, comp), []).append(summary.fmu_time[comp.name] / n)
+        if summary.macro_steps:
+            self.samples.setdefault(MACRO, []).append(summary.overhead_per_macro_step)
+
+    def calibrate(self) -> dict[tuple, float]:
+        """s per call of each kind seen: the (lower) median over the runs."""
+        return {kind: statistics.median_low(times) for kind, times in self.samples.items()}
+
+    @staticmethod
+    def cost(scene: Scenario, times: dict[tuple, float]) -> float:
+        """Modelled wall s per simulated s (a kind not calibrated counts 0: never pruned on a guess)."""
+        return sum(n * times.get(kind, 0.0) for kind, n in work(scene).items())
+
+
+class Pilot:
+    """Runs configurations over the horizon and measures their errors (each once) on the check
+    grid; what the runs take calibrates the cost model."""
+
+    def __init__(self, sc: Scenario, p: Profile, ref: Reference, tolerance: float, lin, stop: Fraction,
+                 grid: Fraction):  # fmt: skip
+        self.sc, self.p, self.reference, self.tolerance, self.lin = sc, p, ref, tolerance, lin
+        self.ref = ref.trajectory
+        self.stop, self.grid = stop, grid
         self.trials: dict[Config, Trial] = {}
-        self.per_step: dict[tuple[str, object], float] = {}  # (component, solver) -> s per step
-        self.per_macro_step = math.inf  # the master's own s per macro step
+        self.model = CostModel()
 
     def __call__(self, c: Config) -> Trial:
         if c not in self.trials:
             self.trials[c] = self._run(c)
         return self.trials[c]
+
+    def scene(self, c: Config) -> Scenario:
+        """The configuration over the horizon, recording at each macro step on the check grid."""
+        return dataclasses.replace(bench.apply(self.sc, self.p, c), stop_time=self.stop,
+                                   record_interval=bench.lcm(c.macro_step, self.grid))  # fmt: skip
 
     def _run(self, c: Config) -> Trial:
         from master.api import run
@@ -192,50 +265,44 @@ class _Pilot:
             rho = spectral_radius(scheme, float(c.macro_step))
             if not is_stable(scheme, float(c.macro_step)):
                 return Trial(c, False, math.inf, f"unstable by the linear analysis (rho {rho:.4f})", rho)
-        scene = bench.apply(self.sc, self.p, c)
+        scene = self.scene(c)
         try:
-            with _quiet():
+            with bench.quiet():
                 res = run(scene, backend="in-process")
         except SimulationError as e:
             return Trial(c, False, math.inf, str(e).split(" (hint")[0], rho)
-        self._learn(res.summary, scene)
+        self.model.learn(res.summary, scene)
         rep = compare(as_trajectory(res.data), self.ref, list(self.p.variables) if self.p.variables else None)
         ok = rep.worst_max <= self.tolerance
         status = "finished" if ok else f"error {rep.worst_max:.3g} ({rep.worst_max_variable})"
         return Trial(c, ok, rep.worst_max, status, rho)
 
-    # The cost model: the least wall time per communication step of each component with each
-    # solver inside its FMU calls, and of the master per macro step, over the pilot runs so far.
-    # Pilot runs of a few ms are too noisy to rank configurations by their own wall times.
-    def _learn(self, s, scene: Scenario) -> None:
-        for comp in scene.components:
-            n = s.steps.get(comp.name, 0)
-            if n and comp.name in s.fmu_time:
-                key = _step_kind(scene, comp)
-                self.per_step[key] = min(self.per_step.get(key, math.inf), s.fmu_time[comp.name] / n)
-        if s.macro_steps:
-            self.per_macro_step = min(self.per_macro_step, s.overhead_per_macro_step)
-
     def cost(self, c: Config) -> float:
-        """Modelled wall time (s) of the configuration over the pilot horizon (0 for a kind of
-        step not yet seen: never pruned on a guess)."""
-        scene = bench.apply(self.sc, self.p, c)
-        n = self.horizon / c.macro_step
-        per_macro = sum(comp.step_ratio * self.per_step.get(_step_kind(scene, comp), 0.0)
-                        for comp in scene.components)  # fmt: skip
-        return float(n) * (per_macro + (self.per_macro_step if math.isfinite(self.per_macro_step) else 0.0))
+        """Modelled s per simulated s with the runs so far (the search's pruning only)."""
+        return CostModel.cost(self.scene(c), self.model.calibrate())
 
 
-def _step_kind(scene: Scenario, comp) -> tuple:
-    """What a communication step of a component costs by: its solver, its solver steps per
-    communication step, polynomial inputs or not."""
-    internal = float(comp.parameters.get("internal_step", 0.0) or 0.0)
-    substeps = round(float(scene.macro_step) / comp.step_ratio / internal) if internal > 0 else 1
-    return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs
+def check_grid(sc: Scenario, steps: list[Fraction], span: Fraction) -> Fraction:
+    """The spacing (s) of the times errors are compared at: the finest grid on which the scene's
+    smallest component step and every candidate macro step at least as coarse all produce outputs
+    (their greatest common divisor), at most MAX_POINTS times over `span`."""
+    smallest = min(sc.macro_step / c.step_ratio for c in sc.components)
+    g = smallest
+    for h in steps:
+        if h >= smallest:
+            g = _gcd(g, h)
+    if span / g > MAX_POINTS:
+        g = min((h for h in steps if h >= span / MAX_POINTS), default=steps[-1])
+    return g
+
+
+def _gcd(a: Fraction, b: Fraction) -> Fraction:
+    return Fraction(math.gcd(a.numerator * b.denominator, b.numerator * a.denominator),
+                    a.denominator * b.denominator)  # fmt: skip
 
 
 def largest_step(
-    pilot: _Pilot, c: Config, steps: list[Fraction], start: int, bound: float
+    pilot: Pilot, c: Config, steps: list[Fraction], start: int, bound: float
 ) -> tuple[Trial, str]:
     """The trial at the largest of `steps` (ascending) within the tolerance, or the failed trial
     at the smallest step tried and why it is the last. Galloping from steps[start] (up while the
@@ -288,31 +355,64 @@ def tune(
     rounds: int = ROUNDS,
 ) -> TuneResult:
     """Search the scene's configurations for the fastest that meets `tolerance` (see the module);
-    `rounds` of coordinate search at most."""
-    from master.api import run
-    from master.evidence.reference import reference
+    `rounds` of coordinate search at most. Raises TuneError where the scene has no reference
+    that resolves the tolerance."""
+    p = bench.profile_for(scenario)
+    with bench.said_once(bench.base_scene(scenario, p)):  # dozens of runs: each warning said once
+        return _tune(scenario, tolerance, real_time_budget, pilot_time, repeats, rounds)
+
+
+def pilot_for(
+    scenario: Scenario, tolerance: float, pilot_time: Fraction | None = None
+) -> tuple[Pilot, list[Fraction]]:
+    """The pilot of a tune (its horizon, check grid, reference and linearisation) and the ladder
+    of macro steps it tries. Raises TuneError where the reference cannot check `tolerance`."""
+    from master.evidence.reference import ReferenceFailed, solve
 
     p = bench.profile_for(scenario)
-    if pilot_time is not None:
-        p = dataclasses.replace(p, stop_time=scenario.start_time + pilot_time)
+    span = scenario.stop_time - scenario.start_time if pilot_time is None else pilot_time
     if p.generic:  # compared on a grid of about 100 rows, so that steps up to its spacing can be tried
-        span = (p.stop_time or scenario.stop_time) - scenario.start_time
         grid = [h for h in ladder(span) if h <= span / 100 and (h / p.record_interval).denominator == 1]
         p = dataclasses.replace(p, record_interval=grid[-1]) if grid else p
-    base = bench.base_scene(scenario, p)
-    ref = reference(base)
-    lin = None if p.generic else bench.linearize_scene(scenario, p)  # a scene of the project's FMUs
-    horizon = base.stop_time - base.start_time
-    pilot = _Pilot(scenario, p, ref, tolerance, lin, horizon)
     lowest = min(p.base.macro_step, p.baseline.macro_step) / FLOOR
-    steps = [h for h in ladder(p.record_interval) if lowest <= h <= horizon]
+    steps = [h for h in ladder(_gcd(p.record_interval, span)) if lowest <= h <= span]  # each divides span
+    if not steps:
+        raise TuneError(f"{scenario.path}: no round macro step divides both the record interval "
+                        f"{float(p.record_interval):g} s and the horizon {float(span):g} s")  # fmt: skip
+    stop = scenario.start_time + span
+    grid = check_grid(scenario, steps, span)
+    names = p.variables or tuple(f"{c}.{v}" for c, v in scenario.record)
+    base = dataclasses.replace(scenario, macro_step=grid, record_interval=grid, stop_time=stop,
+                               record=tuple(tuple(n.split(".", 1)) for n in names))  # fmt: skip
+    try:
+        with bench.quiet():
+            solved = solve(base)
+    except ReferenceFailed as e:
+        raise TuneError(str(e)) from None
+    if not solved.converged and solved.uncertainty * RESOLVED > tolerance:
+        raise TuneError(f"{scenario.path}: a tolerance of {tolerance:g} cannot be checked against "
+                        f"{solved.what}")  # fmt: skip
+    lin = None if p.generic else bench.linearize_scene(scenario, p)  # a scene of the project's FMUs
+    return Pilot(scenario, p, solved, tolerance, lin, stop, grid), steps
+
+
+def _tune(
+    scenario: Scenario,
+    tolerance: float,
+    real_time_budget: float | None,
+    pilot_time: Fraction | None,
+    repeats: int,
+    rounds: int,
+) -> TuneResult:
+    pilot, steps = pilot_for(scenario, tolerance, pilot_time)
+    p = pilot.p
     choices: list[Choice] = []
     failed: list[tuple[str, Trial, str]] = []
 
     def rank() -> list[Choice]:
         for ch in choices:
             ch.cost = pilot.cost(ch.trial.config)
-        return sorted(choices, key=lambda ch: ch.wall_time)
+        return sorted(choices, key=lambda ch: (ch.cost, ch.family))
 
     def search(named: list[tuple[str, Config]]) -> None:
         for name, c in named:
@@ -340,38 +440,55 @@ def tune(
         for name, t in todo:
             expanded.add(name)
             search(variants(t.config, p))
-    ranked = rank()
-    # the fastest single-rate and multirate families are timed too, so the report compares them
-    single = [ch for ch in ranked if ch.trial.config.single_rate]
-    multi = [ch for ch in ranked if ch.trial.config.ratio > 1]
-    for ch in _unique(ranked[:FINALISTS] + single[:1] + multi[:1]):
-        scene = bench.apply(scenario, p, ch.trial.config)
-        with _quiet():
-            ch.timed = [run(scene, backend="serial").summary.wall_time for _ in range(repeats)]
-    timed = sorted((ch for ch in choices if ch.timed), key=lambda ch: ch.wall_time)
-    rest = sorted((ch for ch in choices if not ch.timed), key=lambda ch: ch.wall_time)
-    best = timed[0] if timed else None
-    result = TuneResult(scenario, p, tolerance, float(horizon), _reference_kind(scenario), timed + rest,
-                        failed, best, real_time_budget, pilots=len(pilot.trials))  # fmt: skip
-    if best is not None and lin is not None:
-        result.stable_limit = _stable_limit(lin, p, best.trial.config)
+    costs = pilot.model.calibrate()  # once: every candidate is ranked by these times
+    for ch in choices:
+        ch.cost = CostModel.cost(pilot.scene(ch.trial.config), costs)
+    ranked = sorted(choices, key=lambda ch: (ch.cost, ch.family))
+    horizon = pilot.stop - scenario.start_time
+    result = TuneResult(scenario, p, tolerance, float(horizon), float(pilot.grid), pilot.reference.what,
+                        ranked, failed, None, real_time_budget, len(pilot.trials), costs=costs)  # fmt: skip
+    if ranked:
+        first, second = (ranked + [None])[:2]
+        result.best, result.runner_up, result.verdict = decide(first, second, pilot.scene, repeats)
+    if result.best is not None and pilot.lin is not None:
+        result.stable_limit = _stable_limit(pilot.lin, p, result.best.trial.config)
     return result
 
 
-@contextlib.contextmanager
-def _quiet() -> Iterator[None]:
-    """Pilot runs without the run's notes (start-up, backend): a search makes dozens."""
-    log = logging.getLogger("master")
-    level = log.level
-    log.setLevel(logging.WARNING)
-    try:
-        yield
-    finally:
-        log.setLevel(level)
+def decide(first: Choice, second: Choice | None, scene_of, min_rounds: int = MIN_ROUNDS):
+    """(winner, the other, why) of the two cheapest by the model, timed in turn with the serial
+    backend (the order swapped each round, so that drifting load falls on both alike) until the
+    median ratio of their times is outside the noise (twice its standard error, and SIGNIFICANT)
+    or clearly inside SIGNIFICANT, MAX_ROUNDS at most; equal within the noise, the cheaper by the
+    model wins. Without a second, the first is timed `min_rounds` times (MIN_ROUNDS at least)."""
+    from master.api import run
 
+    def clock(ch: Choice) -> None:
+        with bench.quiet():
+            ch.timed.append(run(scene_of(ch.trial.config), backend="serial").summary.wall_time)
 
-def _unique(choices: list[Choice]) -> list[Choice]:
-    return list({id(ch): ch for ch in choices}.values())
+    min_rounds = max(min_rounds, MIN_ROUNDS)
+    if second is None:
+        for _ in range(min_rounds):
+            clock(first)
+        return first, None, ""
+    margin = math.log1p(SIGNIFICANT)
+    for k in range(1, max(MAX_ROUNDS, min_rounds) + 1):
+        for ch in (first, second) if k % 2 else (second, first):
+            clock(ch)
+        if k < min_rounds:
+            continue
+        logs = [math.log(a / b) for a, b in zip(first.timed, second.timed, strict=True)]
+        m = statistics.median(logs)
+        noise = 2 * 1.4826 * statistics.median(abs(x - m) for x in logs) / math.sqrt(k)
+        if abs(m) > max(noise, margin):
+            winner, other = (first, second) if m < 0 else (second, first)
+            why = f"{math.exp(abs(m)):.2f}x faster in {k} interleaved timings, outside the noise"
+            return winner, other, why
+        if abs(m) + noise < margin:
+            break
+    return first, second, (f"as fast within the noise in {len(first.timed)} interleaved timings: the "
+                           f"cheaper by the cost model")  # fmt: skip
 
 
 def _stable_limit(lin, p: Profile, c: Config) -> float | None:
@@ -386,14 +503,6 @@ def _stable_limit(lin, p: Profile, c: Config) -> float | None:
         return None
 
 
-def _reference_kind(sc: Scenario) -> str:
-    from master.evidence.reference import has_model_exchange
-
-    if has_model_exchange(sc):
-        return "the Model Exchange reference (Radau, rtol 1e-10)"
-    return "a converged co-simulation (successive halving to 1e-6)"
-
-
 def tuned_scenario(result: TuneResult) -> Scenario:
     """The scenario with the winning configuration, over its own stop time, recording on its own
     row grid where the new macro step divides it (else on the nearest common multiple)."""
@@ -404,46 +513,86 @@ def tuned_scenario(result: TuneResult) -> Scenario:
     return dataclasses.replace(chosen, stop_time=sc.stop_time, record_interval=interval)
 
 
+def _speed(result: TuneResult, ch: Choice) -> str:
+    """What a choice costs: measured where it was timed, else modelled."""
+    if ch.wall_time is not None:
+        per_s = ch.wall_time / result.horizon
+        return f"{per_s * 1e3:.3g} ms per simulated s, {1 / per_s:.3g}x real time (timed)"
+    return f"{ch.cost * 1e3:.3g} ms per simulated s, {1 / ch.cost:.3g}x real time (modelled)"
+
+
+def _chosen(result: TuneResult) -> list[str]:
+    best = result.best
+    c = best.trial.config
+    lines = [f"chosen: {best.family}, macro step {float(c.macro_step):g} s: error {best.trial.error:.3g}, "
+             f"{_speed(result, best)}"]  # fmt: skip
+    other = result.runner_up
+    if other is not None:
+        h = float(other.trial.config.macro_step)
+        lines.append(f"  against the runner-up ({other.family}, macro step {h:g} s, error "
+                     f"{other.trial.error:.3g}): {result.verdict}")  # fmt: skip
+    if result.budget is not None:
+        verdict = "within" if result.within_budget else "OVER"
+        lines.append(f"  real-time budget {result.budget:g} s per simulated s: {verdict}")
+    return lines
+
+
+def _measure(result: TuneResult) -> str:
+    what = ", ".join(result.profile.variables) if result.profile.variables else "every recorded variable"
+    return (f"error: the largest deviation over the range of {what}, against {result.reference}, over "
+            f"{result.horizon:g} s every {result.grid:g} s")  # fmt: skip
+
+
+def summary(result: TuneResult, report_path: Path | None = None) -> str:
+    """The console's few lines: the choice, its error and speed, how it was decided, the report."""
+    lines = [f"master tune: {result.scenario.name} to a tolerance of {result.tolerance:g} ({result.pilots} "
+             f"pilot runs, {len(result.choices)} families within it)"]  # fmt: skip
+    lines += _chosen(result) if result.best is not None else ["no configuration tried meets the tolerance"]
+    if report_path is not None:
+        lines.append(f"report: {report_path}")
+    return "\n".join(lines)
+
+
 def report(result: TuneResult) -> str:
     """Why each choice was made and what it costs, as text."""
     p, best = result.profile, result.best
-    what = ", ".join(p.variables) if p.variables else "every recorded variable"
     lines = [
         f"master tune: {result.scenario.name} to a tolerance of {result.tolerance:g}",
-        f"error: the largest deviation over the range of {what}, against {result.reference}, "
-        f"over the first {result.horizon:g} s",
-        f"{result.pilots} pilot runs (in-process); the fastest families timed again with the serial "
-        f"backend (median of their runs)",
+        _measure(result),
+        f"{result.pilots} pilot runs (in-process); candidates ranked by the cost model (counted work per "
+        f"simulated s times the median time of each kind of call over the pilot runs); the two cheapest "
+        f"timed in turn with the serial backend",
         "",
     ]
     if best is None:
         lines.append("no configuration tried meets the tolerance")
     else:
+        lines += _chosen(result)
         c = best.trial.config
-        rt = result.horizon / best.wall_time
-        lines.append(f"chosen: {best.family}, macro step {float(c.macro_step):g} s: error "
-                     f"{best.trial.error:.3g}, {best.wall_time * 1e3:.3g} ms for {result.horizon:g} s "
-                     f"({rt:.3g}x real time)")  # fmt: skip
         if result.stable_limit is not None:
             lines.append(f"  linear stability (at t = {p.linearize_at:g} s): stable up to a macro step of "
                          f"{result.stable_limit:.4g} s, {result.stable_limit / float(c.macro_step):.3g}x the "
                          f"chosen one")  # fmt: skip
-        if result.budget is not None:
-            verdict = "within" if result.within_budget else "OVER"
-            lines.append(f"  real-time budget {result.budget:g} s per simulated s: {verdict} "
-                         f"({best.wall_time / result.horizon:.3g} s per s)")  # fmt: skip
-        single = next((ch for ch in result.choices if ch.trial.config.single_rate and ch.timed), None)
-        multi = next((ch for ch in result.choices if ch.trial.config.ratio > 1 and ch.timed), None)
+        single = next((ch for ch in result.choices if ch.trial.config.single_rate), None)
+        multi = next((ch for ch in result.choices if ch.trial.config.ratio > 1), None)
         if single is not None and multi is not None:
-            ratio = single.wall_time / multi.wall_time
-            lines.append(f"  fastest multirate (step ratio > 1: {multi.family}) against fastest single-rate "
-                         f"({single.family}), both within the tolerance: {ratio:.2f}x the speed")  # fmt: skip
-    head = f"{'timed [ms]':>10} {'model [ms]':>10} {'step [s]':>9} {'error':>9} {'rho':>8}  family"
-    lines += ["", "families within the tolerance (largest step that meets it), fastest first:", head]
+            lines.append(f"  cheapest multirate (step ratio > 1: {multi.family}) against cheapest "
+                         f"single-rate "
+                         f"({single.family}), both within the tolerance, by the cost model: "
+                         f"{single.cost / multi.cost:.2f}x the speed")  # fmt: skip
+    head = f"{'model [ms/s]':>12} {'timed [ms/s]':>12} {'step [s]':>9} {'error':>9} {'rho':>8}  family"
+    lines += ["", "families within the tolerance (largest step that meets it), cheapest first:", head]
     for ch in result.choices:
-        timed = f"{ch.wall_time * 1e3:10.3g}" if ch.timed else f"{'':>10}"
-        lines.append(f"{timed} {ch.cost * 1e3:10.3g} {float(ch.trial.config.macro_step):9.3g} "
+        timed = f"{ch.wall_time / result.horizon * 1e3:12.3g}" if ch.wall_time is not None else f"{'':>12}"
+        lines.append(f"{ch.cost * 1e3:12.3g} {timed} {float(ch.trial.config.macro_step):9.3g} "
                      f"{ch.trial.error:9.3g} {ch.trial.rho:8.5f}  {ch.family}")  # fmt: skip
+    if result.costs:
+        lines += ["", "the cost model's calibration: time per call (median over the pilot runs)"]
+        for kind, t in sorted(result.costs.items(), key=lambda kt: str(kt[0])):
+            name = "master, per macro step" if kind == MACRO else (
+                f"{kind[0]}: solver {SOLVER_NAMES.get(kind[1], kind[1])}, {kind[2]} solver step(s)"
+                + (", polynomial inputs" if kind[3] else ""))  # fmt: skip
+            lines.append(f"  {t * 1e6:10.3g} us  {name}")
     if result.failed:
         lines += ["", "families that met it at no step tried:"]
         lines += [f"  {name}: {why or trial.status}" for name, trial, why in result.failed]

@@ -10,7 +10,8 @@ Families swept (each row of the CSV is one configuration):
 - mech-solver: AB2, AB3 on the mechanics side;
 - backend: serial and parallel.
 Wall time is the median over repeats of the run's stepping wall time (RunSummary.wall_time);
-the error is the worst scaled max error over the recorded variables (master.evidence.errors).
+the error is the worst scaled max error over the recorded variables (master.evidence.errors)
+against the scene's reference (master.evidence.reference; a best-effort one is named as such).
 A run the runtime stops as unstable, or whose error exceeds the variables' range, is kept in
 the table and the plot as unstable.  Each row also gives rho, the spectral radius of the
 macro-step map of the scene linearised at `Profile.linearize_at` (master.evidence.stability):
@@ -20,18 +21,21 @@ rho > 1 predicts a growing mode.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import dataclasses
+import logging
 import math
 import statistics
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
 from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
-from master.evidence.reference import reference
+from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
 from master.scenario.model import Scenario
 
@@ -462,6 +466,48 @@ def figure(rows: list[Row], title: str):
     return fig
 
 
+@contextlib.contextmanager
+def quiet(level: int = logging.WARNING) -> Iterator[None]:
+    """Runs with only the messages of `level` and above: a bench or tune makes dozens of runs of
+    one scene, whose notes and warnings are the same each time."""
+    log = logging.getLogger("master")
+    old = log.level
+    log.setLevel(max(level, old))
+    try:
+        yield
+    finally:
+        log.setLevel(old)
+
+
+class _Once(logging.Filter):
+    def __init__(self) -> None:
+        super().__init__()
+        self.said: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        new = record.getMessage() not in self.said
+        self.said.add(record.getMessage())
+        return new
+
+
+@contextlib.contextmanager
+def said_once(sc: Scenario) -> Iterator[None]:
+    """The scene's warnings (master.api.plan) said now, and every message of master's
+    logger said once in this process until the end: the many runs of a bench or tune repeat them
+    (runs in other processes are `quiet`)."""
+    from master.api import plan
+
+    log = logging.getLogger("master")
+    once = _Once()
+    log.addFilter(once)
+    try:
+        for w in plan(sc).warnings:
+            log.warning(w)
+        yield
+    finally:
+        log.removeFilter(once)
+
+
 def bench(
     scenario: str | Path,
     out_dir: Path,
@@ -469,8 +515,9 @@ def bench(
     repeats: int = 3,
     workers: int = 1,
     scheduler: str | None = None,
-) -> list[Row]:
-    """Run the sweep of a scene; write <out_dir>/<scene>[-quick].csv and .png; return the rows.
+) -> tuple[list[Row], str]:
+    """Run the sweep of a scene; write <out_dir>/<scene>[-quick].csv and .png; return the rows and
+    what the reference is.
 
     The configurations run through the sweep's executor (master.sweeps.executor): a local Dask
     cluster of `workers` processes, one by default so that no two timed runs share the machine,
@@ -481,12 +528,14 @@ def bench(
     sc = load_scenario(scenario)
     p = profile_for(sc)
     base = base_scene(sc, p)
-    ref = reference(base)
+    with said_once(base):
+        ref = solve(base)
     lin = None if p.generic else linearize_scene(sc, p)
     configs = configurations(p, quick)
     rows: list[Row | None] = [None] * len(configs)
     with Executor(None if scheduler else workers, scheduler) as ex:
-        for done, (i, row) in enumerate(ex.map(_measure, configs, sc, p, ref, repeats), start=1):
+        cases = ex.map(_measure, configs, sc, p, ref.trajectory, repeats)
+        for done, (i, row) in enumerate(cases, start=1):
             c = configs[i]
             if not isinstance(row, Row):  # the cluster lost it (its worker died)
                 row = Row(c, float("nan"), [], float("inf"), float("inf"), "", False, f"lost: {row}")
@@ -503,12 +552,14 @@ def bench(
     plot(
         measured, out_dir / f"{stem}.png", f"{sc.name}: work-precision ({'quick' if quick else 'full'} sweep)"
     )
-    return measured
+    return measured, ref.what
 
 
 def _measure(sc: Scenario, p: Profile, ref: Trajectory, repeats: int, c: Config) -> Row:
-    """One configuration, as a task of the executor."""
-    return measure(sc, p, c, ref, repeats)
+    """One configuration, as a task of the executor (in a worker process: the scene's warnings
+    were said by the bench)."""
+    with quiet(logging.ERROR):
+        return measure(sc, p, c, ref, repeats)
 
 
 def report(rows: list[Row], baseline: Config) -> str:
@@ -561,12 +612,13 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(a.out) if a.out else Path("results") / f"bench-{scene_stem(a.scenario)}"
     try:
         p = profile_for(load_scenario(a.scenario))
-        rows = bench(
+        rows, what = bench(
             a.scenario, out, quick=a.quick, repeats=a.repeats, workers=a.workers, scheduler=a.scheduler
         )
-    except (UsageError, ScenarioError, ValueError) as e:
+    except (UsageError, ScenarioError, ValueError, ReferenceFailed) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
+    print(f"errors against {what}")
     print(report(rows, p.baseline))
     print(f"wrote {out}/")
     return 0

@@ -6,9 +6,11 @@ rtol 1e-10) advances the concatenated states of all components monolithically, p
 between stimulus break points so that step inputs do not smear.  Direct-feedthrough outputs
 are read after the producer's inputs are set, in topological order of the components.
 
-Where a component has no Model Exchange interface, the reference is a converged co-simulation
-instead: the scene's own scheme run with the macro step halved until two successive results
-agree to a tolerance (`converged_cosimulation`); the convergence table goes to the log.
+Where a component has no FMI 2.0 Model Exchange interface, the reference is a converged
+co-simulation instead: the scene's own scheme run with the macro step halved until two successive
+results agree to a tolerance (`converged_cosimulation`). Where that does not converge (a counter
+recorded, a scheme that stalls), `solve` gives the finest run as a best-effort reference, named as
+such with its last change; `reference` refuses it (NotConverged).
 
 Results are cached in build/reference-cache/, keyed by a hash of the scenario file, the
 loaded scene (parameters, times, records), the integration settings and the FMU files.
@@ -19,8 +21,8 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import json
+import logging
 import shutil
-import sys
 import tempfile
 from dataclasses import dataclass, replace
 from fractions import Fraction
@@ -35,12 +37,29 @@ from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.fmu import feedthrough_outputs, parse, safe_extract
 from master.scenario.model import Scenario, Stimulus
 
+log = logging.getLogger("master")
 CACHE_DIR = Path(__file__).resolve().parents[2] / "build" / "reference-cache"
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
 
+FLOAT_TYPES = ("Real", "Float64", "Float32")  # outputs a reference compares when a scene records none
+STALLED = 3  # halvings without the change shrinking by a tenth: the co-simulation will not converge
+
+
 class NoModelExchange(Exception):
     """A component's FMU offers no Model Exchange interface."""
+
+
+class ReferenceFailed(RuntimeError):
+    """No reference at all: the integration failed, or the scene's co-simulation does not run."""
+
+
+class NotConverged(RuntimeError):
+    """The co-simulation did not converge; carries the finest run and the convergence table."""
+
+    def __init__(self, message: str, trajectory: Trajectory, convergence: Convergence):
+        super().__init__(message)
+        self.trajectory, self.convergence = trajectory, convergence
 
 
 @dataclass
@@ -203,15 +222,15 @@ class _Scene:
 
 
 def recorded_variables(scenario: Scenario) -> list[tuple[str, str]]:
-    """The (component, variable) pairs the scene records; all Real outputs if it names none."""
+    """The (component, variable) pairs the scene records; all floating-point outputs if it names
+    none (a counter or a flag is not a signal a reference converges on)."""
     if scenario.record:
         return list(scenario.record)
     names = []
     for comp in scenario.components:
         md = parse(comp.fmu_path)
-        names += [
-            (comp.name, v.name) for v in md.modelVariables if v.causality == "output" and v.type == "Real"
-        ]
+        names += [(comp.name, v.name) for v in md.modelVariables
+                  if v.causality == "output" and v.type in FLOAT_TYPES]  # fmt: skip
     return names
 
 
@@ -252,7 +271,7 @@ def integrate(
             scene.segment_start = a
             sol = solve_ivp(scene.rhs, (a, b), x, method=method, rtol=rtol, atol=atol, dense_output=True)
             if not sol.success:
-                raise RuntimeError(
+                raise ReferenceFailed(
                     f"{scenario.path}: reference integration failed on [{a}, {b}] s: {sol.message}"
                 )
             last = b == bps[-1]
@@ -284,17 +303,23 @@ def cache_key(scenario: Scenario, settings: dict) -> str:
 
 
 def has_model_exchange(scenario: Scenario) -> bool:
-    """Whether every component's FMU offers a Model Exchange interface."""
-    return all(parse(c.fmu_path).modelExchange is not None for c in scenario.components)
+    """Whether every component's FMU offers an FMI 2.0 Model Exchange interface (the one the
+    monolithic integration speaks)."""
+    return all(
+        (md := parse(c.fmu_path)).modelExchange is not None and md.fmiVersion == "2.0"
+        for c in scenario.components
+    )
 
 
 @dataclass(frozen=True)
 class Convergence:
     """How a converged co-simulation got there: macro steps (s) and the worst scaled change
-    between each run and the one before (fraction of the variable's range)."""
+    between each run and the one before (fraction of the variable's range), and in which variable
+    the last one was."""
 
     macro_steps: tuple[Fraction, ...]
     changes: tuple[float, ...]
+    variable: str = ""
 
     def observed_order(self) -> float:
         """log2 of the ratio of the last two changes (nan with fewer than two)."""
@@ -307,31 +332,72 @@ class Convergence:
         rows = [f"  H = {float(h):.6g} s: change {c:.3e}" for h, c in pairs]
         return "\n".join(rows + [f"  observed order {self.observed_order():.2f}"])
 
+    @property
+    def last_change(self) -> float:
+        return self.changes[-1] if self.changes else float("inf")
+
+
+def _stalled(changes: list[float]) -> bool:
+    """STALLED halvings in a row, all finite, none shrinking the change by a tenth."""
+    last = changes[-STALLED - 1 :]
+    return (
+        len(last) == STALLED + 1
+        and all(np.isfinite(last))
+        and all(b > 0.9 * a for a, b in zip(last[:-1], last[1:], strict=True))
+    )
+
 
 def converged_cosimulation(
     scenario: Scenario, grid_step: Fraction | None = None, tol: float = 1e-6, max_halvings: int = 12
 ) -> tuple[Trajectory, Convergence]:
     """The scene's co-simulation with its macro step halved until two successive results differ by
-    at most `tol` (worst scaled max difference) on the record grid; the finest run and the table.
+    at most `tol` (worst scaled max difference over `recorded_variables`) on the record grid; the
+    finest run and the table.
 
-    Raises RuntimeError if `max_halvings` halvings do not get there.
+    Raises NotConverged (with the finest run) if `max_halvings` halvings do not get there or the
+    change stalls, ReferenceFailed if the scene's co-simulation fails at its own macro step.
     """
     from master import api  # the runtime; imported here since it is heavy and optional for ME scenes
+    from master.backends.component import SimulationError
 
     step = Fraction(grid_step or scenario.record_interval or scenario.macro_step)
-    previous, steps, changes = None, [], []
+    record = tuple(recorded_variables(scenario))
+    previous, steps, changes, worst = None, [], [], ""
     for j in range(max_halvings + 1):
         h = scenario.macro_step / 2**j
-        traj = as_trajectory(api.run(replace(scenario, macro_step=h, record_interval=step)).data)
+        try:
+            data = api.run(replace(scenario, macro_step=h, record_interval=step, record=record)).data
+        except SimulationError as e:
+            if previous is None:
+                why = str(e).split(" (hint")[0]
+                raise ReferenceFailed(
+                    f"{scenario.path}: no reference: its co-simulation fails ({why})"
+                ) from None
+            break  # the finest run that finished is the best effort
+        traj = as_trajectory(data)
         steps.append(h)
         if previous is not None:
-            changes.append(compare(traj, previous).worst_max)
+            rep = compare(traj, previous)
+            changes.append(rep.worst_max)
+            worst = rep.worst_max_variable
             if changes[-1] <= tol:
-                return traj, Convergence(tuple(steps), tuple(changes))
+                return traj, Convergence(tuple(steps), tuple(changes), worst)
+            if _stalled(changes):
+                break
         previous = traj
-    conv = Convergence(tuple(steps), tuple(changes))
-    what = f"co-simulation did not converge to {tol:g} in {max_halvings} halvings"
-    raise RuntimeError(f"{scenario.path}: {what}:\n{conv.table()}")
+    conv = Convergence(tuple(steps), tuple(changes), worst)
+    what = f"co-simulation did not converge to {tol:g} in {len(changes)} halvings"
+    raise NotConverged(f"{scenario.path}: {what}:\n{conv.table()}", previous, conv)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A reference solution and what it is."""
+
+    trajectory: Trajectory
+    what: str  # for reports: which reference, and how good
+    converged: bool = True  # False: a best effort, the finest co-simulation that did not converge
+    uncertainty: float = 0.0  # worst scaled change between its last two runs (0: Model Exchange)
 
 
 def reference(
@@ -342,32 +408,62 @@ def reference(
     cache_dir: Path | None = CACHE_DIR,
     cosim_tol: float = 1e-6,
 ) -> Trajectory:
-    """The cached reference solution of a loaded scene (see `integrate`; without Model Exchange
-    `converged_cosimulation` to cosim_tol).
+    """The cached reference solution of a loaded scene (see `solve`); raises NotConverged where
+    there is only a best effort."""
+    ref = solve(scenario, grid_step, rtol, atol, cache_dir, cosim_tol)
+    if not ref.converged:
+        raise NotConverged(f"{scenario.path}: no reference: {ref.what}", ref.trajectory, Convergence((), ()))
+    return ref.trajectory
+
+
+def solve(
+    scenario: Scenario,
+    grid_step: Fraction | None = None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    cache_dir: Path | None = CACHE_DIR,
+    cosim_tol: float = 1e-6,
+) -> Reference:
+    """The cached reference solution of a loaded scene: `integrate` through Model Exchange; without
+    it `converged_cosimulation` to cosim_tol, or its finest run as a best effort.
 
     grid_step: spacing (s) of the reference grid; default the scene's record interval.
     cache_dir: None disables the cache.
     """
     grid = record_grid(scenario, grid_step)
     me = has_model_exchange(scenario)
+    me_what = f"the Model Exchange reference (Radau, rtol {rtol:g})"
     settings = {"rtol": rtol, "atol": atol, "grid": [grid[0], grid[-1], len(grid)], "method": "Radau"}
     if not me:
-        settings = {"tol": cosim_tol, "grid": settings["grid"], "method": "converged co-simulation"}
+        settings = {"tol": cosim_tol, "grid": settings["grid"], "method": "converged co-simulation", "v": 2}
     path = None
     if cache_dir is not None:
         path = Path(cache_dir) / f"{cache_key(scenario, settings)}.npz"
         if path.exists():
             data = np.load(path)
-            return Trajectory(data["__time__"], {k: data[k] for k in data.files if k != "__time__"})
+            meta = json.loads(str(data["__meta__"])) if "__meta__" in data.files else {"what": me_what}
+            values = {k: data[k] for k in data.files if not k.startswith("__")}
+            return Reference(Trajectory(data["__time__"], values), **meta)
     if me:
-        traj = integrate(scenario, grid, rtol=rtol, atol=atol)
+        ref = Reference(integrate(scenario, grid, rtol=rtol, atol=atol), me_what)
     else:
-        traj, conv = converged_cosimulation(scenario, grid_step, tol=cosim_tol)
-        print(f"{scenario.path}: no Model Exchange; reference = converged co-simulation:\n{conv.table()}",
-              file=sys.stderr)  # fmt: skip
+        try:
+            traj, conv = converged_cosimulation(scenario, grid_step, tol=cosim_tol)
+            what = (f"a converged co-simulation (no Model Exchange; macro step halved to "
+                    f"{float(conv.macro_steps[-1]):.3g} s, last change {conv.last_change:.2g})")  # fmt: skip
+            ref = Reference(traj, what, True, conv.last_change)
+        except NotConverged as e:
+            conv = e.convergence
+            what = (f"a best-effort reference: no Model Exchange, and the co-simulation did not converge "
+                    f"to {cosim_tol:g} (finest macro step {float(conv.macro_steps[-1]):.3g} s, last change "
+                    f"{conv.last_change:.2g} of the range{f' in {conv.variable}' if conv.variable else ''}): "
+                    f"errors below that are not resolved")  # fmt: skip
+            ref = Reference(e.trajectory, what, False, conv.last_change)
+        log.info("%s: %s:\n%s", scenario.path, ref.what, conv.table())
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"what": ref.what, "converged": ref.converged, "uncertainty": ref.uncertainty}
         with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
-            np.savez(f, __time__=traj.time, **traj.values)
+            np.savez(f, __time__=ref.trajectory.time, __meta__=json.dumps(meta), **ref.trajectory.values)
         Path(f.name).replace(path)
-    return traj
+    return ref

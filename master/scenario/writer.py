@@ -59,6 +59,9 @@ def write_settings(original: Scenario, changed: Scenario, dest: Path, title: str
             _copy_archive(source, Path(tmp), _serialize(root))
         else:
             Path(tmp).write_bytes(_serialize(root))
+        umask = os.umask(0)  # mkstemp makes it 0600: give it the mode a plain new file gets
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, dest)
     finally:
         if os.path.exists(tmp):
