@@ -185,6 +185,15 @@ def _make_backend(name: str, p: Plan, step_timeout: float | None = None, cpus: l
     raise UsageError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 
+def say_fmu_notes(p: Plan) -> None:
+    """The plan's notes on its FMUs (needsExecutionTool) at INFO, each FMU's once in this process:
+    a bench or a tune runs one FMU many times."""
+    for fmu, note in p.fmu_notes:
+        if fmu not in _NOTED_FMUS:
+            _NOTED_FMUS.add(fmu)
+            log.info(note)
+
+
 def run(
     scenario: str | Path | Scenario,
     *,
@@ -233,10 +242,7 @@ def run(
     p = plan(sc)
     for note in p.notes:
         log.info(note)
-    for fmu, note in p.fmu_notes:
-        if fmu not in _NOTED_FMUS:  # a bench or a tune runs one FMU many times in one process
-            _NOTED_FMUS.add(fmu)
-            log.info(note)
+    say_fmu_notes(p)
     with stop_signals():
         if cpus is not None:
             if backend == "in-process":

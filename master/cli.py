@@ -227,6 +227,15 @@ def _cpu_list(text: str) -> list[int]:
     return out
 
 
+def _log_to_stderr(quiet: bool) -> None:
+    """master's own messages on stderr, its notes (INFO) too unless quiet; other libraries' stay quiet."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("master")
+    log.addHandler(handler)
+    log.setLevel(logging.WARNING if quiet else logging.INFO)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 1 failed run or bad input, 2 bad usage, 128 + n
     stopped by signal n: 129 SIGHUP, 130 SIGINT, 143 SIGTERM)."""
@@ -244,14 +253,11 @@ def main(argv: list[str] | None = None) -> int:
         except extras.MissingExtra as e:
             print(f"error: {e}", file=sys.stderr)
             return 1
+        _log_to_stderr(bool({"-q", "--quiet"} & set(argv)))
         return int(bench_main(argv[1:]) or 0)
     args = _parse(argv)
     quiet = getattr(args, "quiet", False)
-    handler = logging.StreamHandler(sys.stderr)  # master's own messages; other libraries' stay quiet
-    handler.setFormatter(logging.Formatter("%(message)s"))
-    log = logging.getLogger("master")
-    log.addHandler(handler)
-    log.setLevel(logging.WARNING if quiet else logging.INFO)
+    _log_to_stderr(quiet)
     try:
         return _dispatch(args, quiet)
     except BrokenPipeError:  # e.g. `master info X | head -1`: the reader has gone, nothing to say

@@ -492,17 +492,16 @@ class _Once(logging.Filter):
 
 @contextlib.contextmanager
 def said_once(sc: Scenario) -> Iterator[None]:
-    """The scene's warnings (master.api.plan) said now, and every message of master's
-    logger said once in this process until the end: the many runs of a bench or tune repeat them
-    (runs in other processes are `quiet`)."""
-    from master.api import plan
+    """The scene's notes on its FMUs (master.api.say_fmu_notes) said now, and every message of
+    master's logger said once in this process until the end: the many runs of a bench or tune
+    repeat them (runs in other processes are `quiet`)."""
+    from master.api import plan, say_fmu_notes
 
     log = logging.getLogger("master")
     once = _Once()
     log.addFilter(once)
     try:
-        for w in plan(sc).warnings:
-            log.warning(w)
+        say_fmu_notes(plan(sc))
         yield
     finally:
         log.removeFilter(once)
