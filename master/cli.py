@@ -396,7 +396,8 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
     from master import tune
     from master.scenario.writer import write_settings
 
-    source = Path(args.scenario)
+    sc = api.load_scenario(Path(args.scenario))
+    source = sc.path  # a folder's scenario file
     out = Path(args.out) if args.out else source.with_name(f"{source.stem}.tuned{source.suffix}")
     if out.resolve() == source.resolve() or out.suffix != source.suffix:
         raise api.UsageError(f"--out {out}: a new {source.suffix} file, not the original")
@@ -405,7 +406,6 @@ def _tune(args: argparse.Namespace, quiet: bool) -> int:
     if args.rounds is not None and args.rounds < 0:
         raise api.UsageError(f"--rounds {args.rounds}: 0 or more")
     pilot = api._parse_time("--pilot-time", args.pilot_time) if args.pilot_time else None
-    sc = api.load_scenario(source)
     rounds = tune.ROUNDS if args.rounds is None else args.rounds
     result = tune.tune(sc, args.tolerance, args.real_time_budget, pilot, args.repeats, rounds)
     report = out.with_suffix(".txt")

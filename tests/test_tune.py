@@ -182,12 +182,14 @@ def test_a_real_time_budget_nothing_meets_writes_the_report_and_no_scenario(tmp_
         (["--tolerance", "0"], "--tolerance"),
         (["--tolerance", "1e-3", "-o", "{src}"], "not the original"),
         (["--tolerance", "1e-3", "-o", "x.csv"], "not the original"),
+        (["--tolerance", "1e-3", "-o", "x.csv"], "--out x.csv: a new .ssd file"),  # the folder's scenario
     ],
 )
 def test_tune_refuses_bad_options_in_one_line(tmp_path, args, message):
     folder = _copy(tmp_path, OSCILLATOR)
     src = str(folder / "oscillator.ssd")
-    proc = subprocess.run([str(BIN / "master"), "tune", src, *(a.format(src=src) for a in args)],
+    given = str(folder) if message.endswith(".ssd file") else src
+    proc = subprocess.run([str(BIN / "master"), "tune", given, *(a.format(src=src) for a in args)],
                           capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     assert proc.returncode in (1, 2) and message in proc.stderr and "Traceback" not in proc.stderr
 
