@@ -15,6 +15,7 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 import xarray as xr
+from helpers import started
 from test_parallel import assert_no_children, lags
 
 import master
@@ -243,8 +244,7 @@ def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(t
     out = tmp_path / "sw"
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:30", "--vary",
            "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with started(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
         deadline = time.monotonic() + 120
         while not (out / "cases.parquet").exists() and time.monotonic() < deadline:
             time.sleep(0.1)  # the table is first written 2 s after the first case
@@ -252,8 +252,6 @@ def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(t
         assert helpers
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
     assert proc.returncode == 128 + sig, err
     assert "interrupted" in err and "Traceback" not in err
     kept = pq.read_table(out / "cases.parquet").to_pylist()
