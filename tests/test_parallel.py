@@ -339,10 +339,10 @@ def test_an_fmu_that_needs_its_execution_tool_is_run_with_a_warning(tmp_path, ca
 
 @contextmanager
 def long_run(
-    tmp_path: Path, backend: str = "parallel"
+    tmp_path: Path, backend: str = "parallel", under: tuple[str, ...] = ()
 ) -> Iterator[tuple[subprocess.Popen, list[psutil.Process], Path]]:
-    """A run of 1000 s in a child process, once its workers are busy; killed with all it started
-    when the block ends."""
+    """A run of 1000 s in a child process (started by the command `under`, e.g. nohup), once its
+    workers are busy; killed with all it started when the block ends."""
     script, out = tmp_path / "run.py", tmp_path / "out.csv"
     here, costly = str(Path(__file__).parent), "{'c0': {'cost_us': 200}, 'c1': {'cost_us': 200}}"
     script.write_text(
@@ -353,7 +353,7 @@ def long_run(
         "except api.SimulationError as e:\n    print('STOPPED', e, flush=True)\n"
     )
     env = {**os.environ, "TMPDIR": str(tmp_path)}  # what a killed master cannot remove stays in tmp_path
-    with started([sys.executable, script], stdout=subprocess.PIPE, text=True, env=env) as proc:
+    with started([*under, sys.executable, script], stdout=subprocess.PIPE, text=True, env=env) as proc:
         ps = psutil.Process(proc.pid)
         workers = 1 if backend == "serial" else 2
         deadline = time.monotonic() + 120  # how long a loaded machine may take to start it
@@ -386,6 +386,19 @@ def test_signal_stops_cleanly_with_partial_results(tmp_path, backend, sig):
         assert named_shm([proc, *children]) == set()
         os.kill(proc.pid, sig)
         assert_clean_stop(proc, children, out, tmp_path, f"STOPPED interrupted ({sig.name})")
+
+
+def test_a_run_under_nohup_goes_on_after_a_hangup(tmp_path):
+    """nohup ignores SIGHUP for the command it starts: the run keeps that choice (it goes on),
+    and the SIGTERM sent after the SIGHUP is the one that stops it."""
+    with long_run(tmp_path, "serial", under=("nohup",)) as (proc, children, out):
+        os.kill(proc.pid, signal.SIGHUP)
+        size = out.stat().st_size
+        while out.stat().st_size < size + 20000 and proc.poll() is None:
+            time.sleep(0.05)  # rows written after the hangup (a stop would not get that far)
+        assert proc.poll() is None, f"the hangup stopped it: {proc.communicate()[0]}"
+        os.kill(proc.pid, signal.SIGTERM)
+        assert_clean_stop(proc, children, out, tmp_path, "STOPPED interrupted (SIGTERM)")
 
 
 @pytest.mark.parametrize("backend", ["serial", "parallel"])
