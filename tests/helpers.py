@@ -105,3 +105,11 @@ def started(cmd: list[str], **popen) -> Iterator[subprocess.Popen]:
         for stream in (proc.stdin, proc.stdout, proc.stderr):
             if stream is not None:
                 stream.close()
+
+
+def finished(cmd: list[str], timeout: float, **popen) -> subprocess.CompletedProcess:
+    """subprocess.run(cmd, capture_output=True, text=True) for a command that starts processes of
+    its own (a Dask cluster): past the timeout, those are killed too."""
+    with started(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen) as proc:
+        out, err = proc.communicate(timeout=timeout)
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
