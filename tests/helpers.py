@@ -1,8 +1,14 @@
-"""Helpers of the connection tests: scenario files written as SSD, runs in every backend, exact
-polynomials."""
+"""Helpers of the tests: scenario files written as SSD, runs in every backend, exact polynomials,
+processes started so that nothing outlives a test."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from fractions import Fraction
 from math import prod
 from pathlib import Path
@@ -72,3 +78,38 @@ def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str
 </ssd:SystemStructureDescription>
 """)
     return path
+
+
+# Execs the command with SIGINT at its default: a suite started with & by a non-interactive shell
+# inherits SIGINT ignored, and so would every process it starts (Python then raises no
+# KeyboardInterrupt); a user's Ctrl-C reaches a foreground job, so the tests start processes as one.
+_AS_IN_A_TERMINAL = (
+    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    "os.execvp(sys.argv[1], sys.argv[1:])"
+)
+
+
+@contextmanager
+def started(cmd: list[str], **popen) -> Iterator[subprocess.Popen]:
+    """`cmd` running (as a terminal's foreground job, in a process group of its own) while the
+    block runs; the whole group is killed when it ends, however it ends: a failing test leaves no
+    process behind to fail the next ones."""
+    proc = subprocess.Popen([sys.executable, "-c", _AS_IN_A_TERMINAL, *map(str, cmd)], start_new_session=True,
+                            **popen)  # fmt: skip
+    try:
+        yield proc
+    finally:
+        with suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        for stream in (proc.stdin, proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
+
+
+def finished(cmd: list[str], timeout: float, **popen) -> subprocess.CompletedProcess:
+    """subprocess.run(cmd, capture_output=True, text=True) for a command that starts processes of
+    its own (a Dask cluster): past the timeout, those are killed too."""
+    with started(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen) as proc:
+        out, err = proc.communicate(timeout=timeout)
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.util import read_csv
+from helpers import started
 from PIL import Image
 
 from master.cli import scene_stem
@@ -235,14 +236,11 @@ def test_the_default_results_of_a_generic_system_structure_are_named_after_its_f
 
 def test_closed_pipe_ends_quietly():
     """`master info X | head -1`: the reader goes away, master ends without a traceback."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "master", "info", str(fmu_path("dahlquist"))],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    proc.stdout.close()  # nobody reads: the first write fails
-    err = proc.stderr.read().decode()
-    assert proc.wait(timeout=60) == 0 and "Traceback" not in err and "BrokenPipe" not in err
+    cmd = [sys.executable, "-m", "master", "info", fmu_path("dahlquist")]
+    with started(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+        proc.stdout.close()  # nobody reads: the first write fails
+        err = proc.stderr.read().decode()
+        assert proc.wait(timeout=60) == 0 and "Traceback" not in err and "BrokenPipe" not in err
 
 
 def test_subcommand_help_names_itself():

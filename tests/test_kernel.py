@@ -103,7 +103,7 @@ def test_paced_run_reports_a_lateness_histogram(echo):
         stimuli=(Stimulus("e", "u", "step", (0.0,), (1.0,)),),
     )
     s = api.run(sc, real_time=1.0).summary
-    assert 0.095 < s.wall_time < 1.0  # 50 frames of 2 ms; the upper bound leaves room for a loaded machine
+    assert s.wall_time > 0.095  # 50 frames of 2 ms, not faster (how close: benchmarks/realtime.py)
     late = s.lateness
     assert late is not None and 0 <= late["p50"] <= late["p99"] <= late["p99.9"] <= s.worst_lateness
     assert s.idle_time > 0 and "frame lateness: p50" in str(s)

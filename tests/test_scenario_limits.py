@@ -2,7 +2,6 @@
 problem each (the classes a mutation campaign over scenario files turned up)."""
 
 import shutil
-import time
 from pathlib import Path
 
 import pytest
@@ -40,11 +39,11 @@ CASES = [
 
 
 @pytest.mark.parametrize("old, new, said", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
-def test_bad_numbers_are_one_problem_each_found_fast(old, new, said, tmp_path):
+def test_bad_numbers_are_one_problem_each(old, new, said, tmp_path):
+    """One clear problem each, saying what is wrong (a 1e100000000 once took minutes to refuse;
+    the limits on exponents and digits keep that away, a timed bound here would fail under load)."""
     ssd = mutated(tmp_path, old, new)
-    t0 = time.perf_counter()
     problems = api.validate(ssd)
-    assert time.perf_counter() - t0 < 10  # bounded cost: a 1e100000000 once took minutes
     assert problems, "validate accepted it"
     assert any(said in str(p) for p in problems), [str(p) for p in problems]
     with pytest.raises(ScenarioError):

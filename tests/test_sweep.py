@@ -15,6 +15,7 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 import xarray as xr
+from helpers import finished, started
 from test_parallel import assert_no_children, lags
 
 import master
@@ -218,7 +219,7 @@ def test_cli_sweep_writes_the_table_and_refuses_bad_input_in_one_line(tmp_path):
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=1:2:2",
            "--vary", "mass2.m=1:2:2", "--metric", "peak=max(abs(mass1.x))", "--workers", "2",
            "--stop-time", "1", "--out", str(out), "--plot", str(png)]  # fmt: skip
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    done = finished(cmd, 300, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "4 cases: 4 run (0 failed), 0 done earlier" in done.stdout
     assert len(pq.read_table(out / "cases.parquet")) == 4 and png.stat().st_size > 0
@@ -228,8 +229,7 @@ def test_cli_sweep_writes_the_table_and_refuses_bad_input_in_one_line(tmp_path):
         (["--vary", "mass1.c=1:2:2", "--metric", "p=open('f')"], "unknown function open"),
         (["--vary", "mass1.c=1:2:2", "--scheduler", "tcp://127.0.0.1:1"], "cannot connect"),
     ]:
-        done = subprocess.run(cmd[:3] + bad + ["--out", str(tmp_path / "bad")], capture_output=True,
-                              text=True, cwd=tmp_path, timeout=120)  # fmt: skip
+        done = finished(cmd[:3] + bad + ["--out", str(tmp_path / "bad")], 120, cwd=tmp_path)
         assert done.returncode == 1 and words in done.stderr, done.stderr
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
@@ -262,8 +262,7 @@ def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(t
     out = tmp_path / "sw"
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:30", "--vary",
            "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with started(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
         deadline = time.monotonic() + 120
         while not (out / "cases.parquet").exists() and time.monotonic() < deadline:
             time.sleep(0.1)  # the table is first written 2 s after the first case
@@ -271,13 +270,11 @@ def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(t
         assert helpers
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
     assert proc.returncode == 128 + sig, err
     assert "interrupted" in err and "Traceback" not in err
     kept = pq.read_table(out / "cases.parquet").to_pylist()
     assert 0 < len(kept) < 60 and all(r["status"] == "ok" for r in kept)
     _, alive = psutil.wait_procs(helpers, timeout=10)
     assert alive == []
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    done = finished(cmd, 300, cwd=tmp_path)
     assert f"60 cases: {60 - len(kept)} run (0 failed), {len(kept)} done earlier" in done.stdout, done.stderr

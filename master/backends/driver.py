@@ -59,10 +59,17 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+def catch(signals: tuple[int, ...], handler) -> dict[int, object]:
+    """`handler` for each of `signals` that is not ignored; the old handlers. An ignored one stays
+    ignored: whoever started the process chose so (nohup ignores SIGHUP, a non-interactive shell
+    SIGINT for a job started with &), as Python itself keeps an ignored SIGINT."""
+    return {s: signal.signal(s, handler) for s in signals if signal.getsignal(s) != signal.SIG_IGN}
+
+
 @contextmanager
 def stop_signals() -> Iterator[None]:
     """Within: SIGTERM and SIGHUP stop a run as Ctrl-C does (rows kept, workers stopped, the
-    SimulationError says which signal; exit code 128 + its number)."""
+    SimulationError says which signal; exit code 128 + its number), unless they are ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -70,7 +77,7 @@ def stop_signals() -> Iterator[None]:
     def stop(signum: int, frame: object) -> None:
         raise Interrupted(signum)
 
-    old = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGHUP)}
+    old = catch((signal.SIGTERM, signal.SIGHUP), stop)
     try:
         yield
     finally:

@@ -78,18 +78,19 @@ class Executor:
 
     @contextlib.contextmanager
     def _holding_signals(self) -> Iterator[None]:
-        """SIGINT, SIGTERM and SIGHUP are held, not raised where they land: raised inside one of
-        distributed's blocking calls, an interrupt leaves its event loop a broken callback (a
-        traceback on stderr) and the cluster half closed. `map` raises them between polls."""
+        """SIGINT, SIGTERM and SIGHUP (those not ignored) are held, not raised where they land:
+        raised inside one of distributed's blocking calls, an interrupt leaves its event loop a
+        broken callback (a traceback on stderr) and the cluster half closed. `map` raises them
+        between polls."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
+        from master.backends.driver import STOPS, catch
 
         def hold(signum: int, frame: object) -> None:
             self.held = self.held or signum
 
-        stops = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-        old = {s: signal.signal(s, hold) for s in stops}
+        old = catch(STOPS, hold)
         try:
             yield
         finally:
