@@ -186,3 +186,49 @@ def test_two_outputs_or_two_inputs_stay_refused(tmp_path: Path, start, end, prob
     scene.write_text(text[:at] + added + "      " + text[at:])
     problems = validate(scene)
     assert [p.message.split(":")[0] for p in problems if p.line == 56] == [problem]
+
+
+QUARTER_TRUCK_SSV = SSP / "Ecos-platform-ecos" / "quarter_truck" / "ssv"
+
+
+def test_an_ssv_using_ssps_own_prefix_undeclared_is_read_with_a_warning(caplog):
+    from master.scenario import xmlio
+    from master.scenario.problems import NS_SSV, Problems
+
+    path = QUARTER_TRUCK_SSV / "initialValues_chassis.ssv"
+    problems = Problems()
+    with caplog.at_level(logging.WARNING, logger="master"):
+        tree = xmlio.parse(path, str(path), problems)
+    assert problems.items == []
+    assert xmlio.check_schema(tree, xmlio.ssv_schema(), str(path), problems)
+    values = {
+        p.get("name"): float(p.find(f"{{{NS_SSV}}}Real").get("value"))
+        for p in tree.getroot().iter(f"{{{NS_SSV}}}Parameter")
+    }
+    assert values == {"C.mChassis": 400.0, "C.kChassis": 15000.0, "R.dChassis": 1000.0}
+    assert [r.getMessage() for r in caplog.records] == [
+        f'{path}:2: ssv:ParameterSet: namespace prefix "ssv" is not declared; read as SSP\'s: declare '
+        'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" on the root element'
+    ]
+
+
+def test_an_undeclared_prefix_that_is_not_ssps_is_one_problem_naming_it():
+    scene = SSP / "open-simulation-platform-libcosim" / "demo" / "SystemStructure2.ssd"
+    problems = validate(scene)
+    assert [str(p) for p in problems] == [
+        f'{scene}:15: osp:Algorithm: namespace prefix "osp" is not declared: declare it on the root '
+        'element (xmlns:osp="its namespace URI")'
+    ]
+
+
+def test_other_syntax_errors_beside_an_undeclared_prefix_stay_syntax_errors(tmp_path: Path):
+    bad = tmp_path / "bad.ssv"
+    bad.write_text((QUARTER_TRUCK_SSV / "initialValues_wheel.ssv").read_text() + "<extra/>")
+    from master.scenario import xmlio
+    from master.scenario.problems import Problems
+
+    problems = Problems()
+    assert xmlio.parse(bad, str(bad), problems) is None
+    (problem,) = problems.items
+    assert problem.element == "XML"
+    assert problem.message == "not well-formed XML: Extra content at the end of the document"
