@@ -16,7 +16,7 @@ from pathlib import Path
 from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
-from master.fmu import FmuError, read_description, variables_of
+from master.fmu import FmuError, defects, read_description, variables_of
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
@@ -372,8 +372,9 @@ def fmu_info(path: Path) -> str:
         f"canInterpolateInputs={cs.canInterpolateInputs} "
         f"maxOutputDerivativeOrder={cs.maxOutputDerivativeOrder} "
         f"canGetAndSetFMUstate={cs.canGetAndSetFMUstate}",
-        f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit",
     ]
+    lines += [f"  read all the same, as peer masters do: {d}" for d in defects(path)]
+    lines.append(f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit")
     for v in variables_of(md).values():
         shape = f"[{','.join(str(n) for n in v.shape)}]" if v.shape else ""  # an FMI 3 array
         kind = (v.fmi_type or v.type) + shape  # FMI 3's own type names: Float32, Int64, ...

@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import re
 import shutil
 import tempfile
 import zipfile
@@ -19,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import ModelDescription, read_model_description
+from fmpy.model_description import ModelDescription, ValidationError, read_model_description
+from fmpy.validation import validate_model_description
 
 REAL_TYPES = ("Real", "Float64", "Float32")
 INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
@@ -65,6 +67,13 @@ RAW_NAMES = {
 
 class FmuError(Exception):
     """A failing FMU: bad file, bad model description or a failing FMI call."""
+
+
+class InvalidDescription(Exception):
+    """A modelDescription.xml the master cannot use: fmpy's findings, on one line."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("; ".join(problems))
 
 
 @dataclass(frozen=True)
@@ -132,16 +141,86 @@ def read_description(path: Path) -> ModelDescription:
 def parse(path: Path) -> ModelDescription:
     """An FMU file's modelDescription.xml parsed and checked against the FMI schema by fmpy, once
     per file version (path, modification time, size) and process: the one reader that
-    read_description, the scenario layer (scenario/fmuinfo.py) and the references share. fmpy's
-    exceptions pass through; callers must not change the object they get."""
+    read_description, the scenario layer (scenario/fmuinfo.py) and the references share. A
+    description that breaks one of fmpy's further rules that `tolerated` names (as peer masters
+    do) is read all the same: `defects` lists them. Raises an Exception with one line saying why
+    for a description that cannot be used; callers must not change the object they get."""
+    return _parsed(path)[0]
+
+
+def defects(path: Path) -> tuple[str, ...]:
+    """What fmpy's strict validation finds wrong with a description `parse` reads all the same
+    (fmpy's words, each naming the variable and its line); empty for a valid one."""
+    return _parsed(path)[1]
+
+
+def _parsed(path: Path) -> tuple[ModelDescription, tuple[str, ...]]:
     path = Path(path)
     st = path.stat()
     return _parse(path.resolve(), st.st_mtime_ns, st.st_size)
 
 
+# fmpy's validation findings that leave a description usable by this master, as peer masters
+# (libcosim, ecos, OMSimulator) read them; any other finding refuses the FMU.
+TOLERATED = (
+    # units are compared as written (a connection's two units must be equal), never looked up
+    re.compile(r'^The (display )?unit "[^"]*" of .*variable "[^"]*" .*is not defined\.$'),
+    # a non-Real signal is held between communication points whatever its variability says
+    re.compile(
+        r'^The variable "[^"]*" \(line \d+\) is of type \w+ and must have variability != "continuous"\.$'
+    ),
+    # start values of calculated and independent variables are never set by the master
+    re.compile(r'^The variable "[^"]*" \(line \d+\) has (initial="calculated"|causality="independent") but'),
+)
+_DUPLICATE = re.compile(r'^The variable name "(?P<name>[^"]*)" \(line \d+\) is not unique\.$')
+
+
+def tolerated(problem: str, md: ModelDescription) -> bool:
+    """Whether fmpy's validation finding `problem` leaves the description `md` usable: see
+    TOLERATED; a name used twice only among local variables (FMI 1.0 "internal"), which no
+    connection, binding or stimulus can name."""
+    if any(r.match(problem) for r in TOLERATED):
+        return True
+    dup = _DUPLICATE.match(problem)
+    if dup is None:
+        return False
+    same = [v for v in md.modelVariables if v.name == dup["name"]]
+    return all(v.causality in ("local", "internal") for v in same)
+
+
 @functools.lru_cache(maxsize=64)
-def _parse(path: Path, _mtime_ns: int, _size: int) -> ModelDescription:
-    return read_model_description(str(path), validate=True)
+def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tuple[str, ...]]:
+    try:
+        return read_model_description(str(path), validate=True), ()
+    except ValidationError as strict:
+        problems = list(strict.problems)
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception:
+        raise InvalidDescription(problems) from None
+    found = validate_model_description(md)
+    if found != problems:  # the schema refused it: its structure cannot be trusted
+        raise InvalidDescription(problems)
+    refused = [p for p in found if not tolerated(p, md)]
+    if refused:
+        raise InvalidDescription(refused)
+    return md, tuple(found)
+
+
+def unsupported(md: ModelDescription, path: Path) -> str | None:
+    """Why the master cannot run the FMU at `path` (description `md`); None if it can. The one
+    rule that `validate` and `run` share: FMI 2.0 or 3.x, a Co-Simulation interface, a binary for
+    this platform."""
+    from fmpy import platform, platform_tuple, supported_platforms
+
+    if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
+        return f"FMI {md.fmiVersion} is not supported: the master runs FMI 2.0 and 3.x co-simulation FMUs"
+    if md.coSimulation is None:
+        return f"model '{md.modelName}' has no co-simulation interface"
+    has = supported_platforms(str(path))
+    if platform not in has and platform_tuple not in has:
+        return f"no binary for this platform ({platform}); the FMU has: {', '.join(has) or 'none'}"
+    return None
 
 
 @functools.lru_cache(maxsize=64)
@@ -152,10 +231,9 @@ def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescriptio
         md = parse(path)
     except Exception as e:  # fmpy raises plain Exceptions with the schema error
         raise FmuError(f"{path}: invalid modelDescription.xml: {e}") from e
-    if md.fmiVersion not in ("2.0",) and not md.fmiVersion.startswith("3."):
-        raise FmuError(f"{path}: FMI version {md.fmiVersion} is not supported (2.0 or 3.x needed)")
-    if md.coSimulation is None:
-        raise FmuError(f"{path}: model '{md.modelName}' does not support Co-Simulation")
+    why = unsupported(md, path)
+    if why:
+        raise FmuError(f"{path}: {why}")
     return md
 
 

@@ -64,8 +64,8 @@ def _read(sc: Scenario, at: At) -> dict[str, FmuInfo | None]:
         except (SourceError, OSError) as err:
             at(f"component {c.name}", f"{c.fmu_path}: {err}")
             info = None
-        if info is not None and not info.co_simulation:
-            at(f"component {c.name}", f"{info.path.name} has no co-simulation interface")
+        if info is not None and info.unsupported:
+            at(f"component {c.name}", f"{info.path.name}: {info.unsupported}")
             info = None
         infos[c.name] = info
     return infos

@@ -344,6 +344,10 @@ class FmuInfo:
     can_interpolate_inputs: bool
     # structural parameters that give an array its size -> the arrays they size
     sizes: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    # why the master cannot run this FMU (master.fmu.unsupported: FMI version, interface); None if it can
+    unsupported: str | None = None
+    # what fmpy's strict validation finds wrong with a description read all the same (master.fmu.defects)
+    defects: tuple[str, ...] = ()
 
 
 def project_fmu_names() -> list[str]:
@@ -428,7 +432,7 @@ def read(path: Path) -> FmuInfo:
 
 @functools.lru_cache(maxsize=64)
 def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
-    from master.fmu import parse
+    from master.fmu import defects, parse, unsupported
 
     from .archive import damaged
 
@@ -478,6 +482,8 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
         co_simulation=cs is not None,
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
         sizes={k: tuple(v) for k, v in sizes.items()},
+        unsupported=unsupported(md, path),
+        defects=defects(path),
     )
 
 

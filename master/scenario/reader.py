@@ -10,6 +10,7 @@ an FMU without one), which such an input keeps unless a binding or stimulus sets
 
 from __future__ import annotations
 
+import logging
 from fractions import Fraction
 from pathlib import Path
 
@@ -20,8 +21,10 @@ from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
 from .model import Component, Connection, Scenario
 from .numbers import parse_time
-from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError
+from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError, describe
 from .xmlio import tag
+
+log = logging.getLogger("master")
 
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 SCENARIO_SUFFIXES = (".ssd", ".ssp")
@@ -210,9 +213,12 @@ def _fmu(ctx: Context, elem: etree._Element) -> fmuinfo.FmuInfo | None:
     except SourceError as err:
         ctx.at(elem, str(err))
         return None
-    if not info.co_simulation:
-        ctx.at(elem, f"{info.path.name} has no co-simulation interface")
+    if info.unsupported:
+        ctx.at(elem, f"{info.path.name}: {info.unsupported}")
         return None
+    for defect in info.defects:  # read all the same, as peer masters do (master.fmu.TOLERATED)
+        where = f"{ctx.shown}:{elem.sourceline}: {describe(elem)}"
+        log.warning("%s: modelDescription.xml of %s: %s (read all the same)", where, info.path.name, defect)
     return info
 
 
@@ -269,6 +275,7 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         inp = _end(ctx, elem, ee, ec)
         if out is None or inp is None:
             continue
+        (se, sc, out), (ee, ec, inp) = _oriented(ctx, elem, (se, sc, out), (ee, ec, inp))
         wrong_way = fmuinfo.direction_problems(f"{se}.{sc}", out.causality, f"{ee}.{ec}", inp.causality)
         for problem in wrong_way:
             ctx.at(elem, problem)
@@ -298,6 +305,22 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         if ok:
             good.append(((se, sc, ee, ec), elem))
     return good, links
+
+
+End = tuple[str, str, fmuinfo.Var]  # (component, connector, its FMU variable)
+
+
+def _oriented(ctx: Context, elem: etree._Element, start: End, end: End) -> tuple[End, End]:
+    """(output end, input end) of a connection. SSP 1.0 says startElement/endElement do not fix
+    the direction: one written input -> output is turned around, with a note; any other pair is
+    kept as written (two inputs or two outputs are then refused)."""
+    if start[2].causality == "input" and end[2].causality == "output":
+        log.info(
+            "%s:%s: %s: written input -> output: read as %s.%s -> %s.%s",
+            ctx.shown, elem.sourceline, describe(elem), end[0], end[1], start[0], start[1],
+        )  # fmt: skip
+        return end, start
+    return start, end
 
 
 def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuinfo.Var | None:

@@ -139,7 +139,7 @@ def read(
     if times is not None:
         _limits(ctx, elem, s, times)
     _order(ctx, elem, s)
-    ends = {
+    ends = set(ctx.driven) | {  # driven inputs, those of connections written input -> output too
         (c.get("endElement"), c.get("endConnector"))
         for c in system.iter(tag(NS_SSD, "Connection"))  # also those with problems of their own
     }

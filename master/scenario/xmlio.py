@@ -3,39 +3,114 @@
 from __future__ import annotations
 
 import functools
+import io
+import logging
 import re
 from pathlib import Path
 
 import fmpy
 from lxml import etree
 
-from .problems import NS_MM, NS_SSD, NS_SSV, PREFIXES, Problems, qualified
+from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV, PREFIXES, Problems, qualified
+
+log = logging.getLogger("master")
 
 SSP_SCHEMAS = Path(fmpy.__file__).parent / "ssp" / "schema"
 OUR_SCHEMA = Path(__file__).resolve().parents[1] / "schemas" / "multirate-settings.xsd"
 
 
-def parse(path: Path, shown: str, problems: Problems) -> etree._ElementTree | None:
-    """Parse `path` without entities or network access; syntax errors become problems."""
-    parser = etree.XMLParser(
+def _parser() -> etree.XMLParser:
+    return etree.XMLParser(
         resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True, remove_pis=True
     )
+
+
+def parse(path: Path, shown: str, problems: Problems) -> etree._ElementTree | None:
+    """Parse `path` without entities or network access; syntax errors become problems. A file
+    that uses SSP's own prefixes (ssd, ssc, ssv, ssm, ssb) without declaring them is read with
+    their SSP 1.0 namespaces, a warning per prefix (`undeclared_prefixes`)."""
+    parser = _parser()
     try:
         tree = etree.parse(str(path), parser)
-        if tree.docinfo.doctype:  # entities would reach the schema check unexpanded
-            problems.add(
-                shown, 1, "XML", "a DOCTYPE (DTD, entity declarations) is not accepted in scenario files"
-            )
-            return None
-        return tree
     except etree.XMLSyntaxError as err:
-        entry = err.error_log.last_error if err.error_log else None
-        line = entry.line if entry is not None else err.lineno
-        message = entry.message if entry is not None else str(err)
-        problems.add(shown, line, "XML", f"not well-formed XML: {message}")
+        before = len(problems)
+        tree = undeclared_prefixes(path, shown, parser.error_log, problems)
+        if tree is None and len(problems) == before:
+            entry = err.error_log.last_error if err.error_log else None
+            line = entry.line if entry is not None else err.lineno
+            message = entry.message if entry is not None else str(err)
+            problems.add(shown, line, "XML", f"not well-formed XML: {message}")
+        if tree is None:
+            return None
     except OSError as err:
         problems.add(shown, None, "file", f"cannot read: {err}")
-    return None
+        return None
+    if tree.docinfo.doctype:  # entities would reach the schema check unexpanded
+        problems.add(
+            shown, 1, "XML", "a DOCTYPE (DTD, entity declarations) is not accepted in scenario files"
+        )
+        return None
+    return tree
+
+
+# The prefixes the SSP standard gives its namespaces: a file that uses one without declaring it
+# means that namespace (as libcosim and ecos read it).
+SSP_PREFIXES = {
+    "ssd": NS_SSD,
+    "ssc": NS_SSC,
+    "ssv": NS_SSV,
+    "ssm": "http://ssp-standard.org/SSP1/SystemStructureParameterMapping",
+    "ssb": "http://ssp-standard.org/SSP1/SystemStructureSignalDictionary",
+}
+_ROOT_TAG = re.compile(rb"<[^?!\s/>][^\s/>]*")  # the root element's start tag: <name
+_UNDECLARED = re.compile(r"^Namespace prefix (\S+) on (\S+) is not defined")
+
+
+def undeclared_prefixes(
+    path: Path, shown: str, errors: etree._ListErrorLog, problems: Problems
+) -> etree._ElementTree | None:
+    """The tree of a file whose only fault (`errors`: its parser's log) is namespace prefixes it
+    never declares, if they are all SSP's own (read with SSP's namespaces, a warning per prefix at
+    its first use); otherwise None, with a problem per undeclared prefix that is not SSP's (file,
+    line, prefix, what to declare), or none at all if the file has other faults too (the caller
+    reports the syntax error)."""
+    first: dict[str, tuple[int, str]] = {}  # prefix -> (line, element) of its first use
+    for entry in errors:  # this parse's own errors (an exception's log may hold earlier ones too)
+        m = _UNDECLARED.match(entry.message)
+        if entry.type_name != "NS_ERR_UNDEFINED_NAMESPACE" or m is None:
+            return None
+        first.setdefault(m.group(1), (entry.line, f"{m.group(1)}:{m.group(2)}"))
+    unknown = sorted(set(first) - set(SSP_PREFIXES))
+    for prefix in unknown:
+        line, element = first[prefix]
+        problems.add(
+            shown, line, element,
+            f'namespace prefix "{prefix}" is not declared: declare it on the root element '
+            f'(xmlns:{prefix}="its namespace URI")',
+        )  # fmt: skip
+    if unknown:
+        return None
+    # Parsed again, strictly, as if the root element declared them (lines stay where they were)
+    text = path.read_bytes()
+    root = _ROOT_TAG.search(text)
+    if root is None:
+        return None
+    declared = "".join(f' xmlns:{p}="{SSP_PREFIXES[p]}"' for p in first).encode()
+    parser = _parser()
+    try:
+        tree = etree.parse(io.BytesIO(text[: root.end()] + declared + text[root.end() :]), parser)
+    except etree.XMLSyntaxError as err:  # faults of its own, which the undeclared prefixes hid
+        entry = parser.error_log.last_error
+        line, message = (entry.line, entry.message) if entry is not None else (err.lineno, str(err))
+        problems.add(shown, line, "XML", f"not well-formed XML: {message}")
+        return None
+    for prefix, (line, element) in first.items():
+        log.warning(
+            '%s:%s: %s: namespace prefix "%s" is not declared; read as SSP\'s: declare '
+            'xmlns:%s="%s" on the root element',
+            shown, line, element, prefix, prefix, SSP_PREFIXES[prefix],
+        )  # fmt: skip
+    return tree
 
 
 def _combined_schema(imports: dict[str, Path]) -> etree.XMLSchema:
