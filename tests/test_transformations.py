@@ -217,5 +217,108 @@ def test_a_scenario_built_in_python_keeps_the_unit_rule():
     bad = replace(
         base, connections=(Connection("a", "x", "b", "x_in", transformation=Transformation("map")),)
     )
-    with pytest.raises(ScenarioError, match="a map transformation transforms"):
+    with pytest.raises(
+        ScenarioError,
+        match="a map transformation transforms Integer, Enumeration and Boolean values only: a.x is Real",
+    ):
         api.plan(bad)
+
+
+# -- mapping transformations of held signals -----------------------------------------------------
+
+
+def pair(path: Path, source: str, connectors: str, connections: str, settings: str = "") -> Path:
+    """Two instances a and b of one project FMU; `connectors` declared on both."""
+    comps = "".join(
+        f'<ssd:Component name="{n}" source="project:{source}"><ssd:Connectors>{connectors}'
+        "</ssd:Connectors></ssd:Component>\n"
+        for n in ("a", "b")
+    )
+    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="mapped"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="mapped">
+    <ssd:Elements>{comps}</ssd:Elements>
+    <ssd:Connections>{connections}</ssd:Connections>
+    <ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">
+      <mm:Settings macroStep="0.05">{settings}</mm:Settings>
+    </ssc:Annotation></ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment stopTime="2"/>
+</ssd:SystemStructureDescription>
+""")
+    return path
+
+
+DISCRETE = """<ssd:Connector name="n" kind="output"/><ssd:Connector name="on" kind="output"/>
+<ssd:Connector name="n_in" kind="input"/><ssd:Connector name="on_in" kind="input"/>"""
+INTEGER_MAP = """<ssd:Connection startElement="a" startConnector="n" endElement="b" endConnector="n_in">
+  <ssc:IntegerMappingTransformation>
+    <ssc:MapEntry source="2" target="5"/><ssc:MapEntry source="1" target="-3"/>
+  </ssc:IntegerMappingTransformation></ssd:Connection>"""
+BOOLEAN_MAP = """<ssd:Connection startElement="a" startConnector="on" endElement="b" endConnector="on_in">
+  <ssc:BooleanMappingTransformation>
+    <ssc:MapEntry source="true" target="false"/><ssc:MapEntry source="false" target="true"/>
+  </ssc:BooleanMappingTransformation></ssd:Connection>"""
+
+
+def test_integer_and_boolean_mappings_transform_the_held_values(tmp_path):
+    """a's state decays from 0.7 through the quanta 0.25 (its Integer n: 2, 1, 0) and below its
+    threshold (its Boolean on): b receives n mapped 2 -> 5, 1 -> -3 (0, named by no entry, as it
+    is) and on negated, at every row and in the steps (b grows while its on_in is true)."""
+    settings = '<mm:Record><mm:Variable component="a" name="n"/><mm:Variable component="a" name="on"/>'
+    settings += "".join(f'<mm:Variable component="b" name="{v}"/>' for v in ("n_in", "on_in", "x"))
+    settings += "</mm:Record>"
+    path = pair(tmp_path / "m.ssd", "discrete", DISCRETE, INTEGER_MAP + BOOLEAN_MAP, settings)
+    sc = api.load_scenario(path, {"a.x": "0.7", "a.threshold": "0.5", "b.x": "0", "b.threshold": "100"})
+    d = run_everywhere(sc)
+    assert set(d["a.n"]) == {0.0, 1.0, 2.0} and set(d["a.on"]) == {0.0, 1.0}
+    assert np.array_equal(d["b.n_in"], np.select([d["a.n"] == 2, d["a.n"] == 1], [5.0, -3.0], d["a.n"]))
+    assert np.array_equal(d["b.on_in"], 1.0 - d["a.on"])
+    grows = np.diff(d["b.x"]) > 0
+    assert grows.any() and not grows.all()  # growth (on_in) once a is below its threshold
+
+
+ENUMS = """<ssd:Connector name="y_enumeration" kind="output"/>
+<ssd:Connector name="u_enumeration" kind="input"/>"""
+ENUM_MAP = """<ssd:Connection startElement="a" startConnector="y_enumeration"
+    endElement="b" endConnector="u_enumeration">
+  <ssc:EnumerationMappingTransformation>
+    <ssc:MapEntry source="ab2" target="semi_implicit_midpoint"/><ssc:MapEntry source="rk4" target="euler"/>
+  </ssc:EnumerationMappingTransformation></ssd:Connection>"""
+
+
+def test_an_enumeration_mapping_maps_item_names(tmp_path):
+    """alltypes (FMI 3.0): y_enumeration = u_enumeration mod 6 + 1 over the items euler = 1 ...
+    semi_implicit_midpoint = 6 (ab2 = 2, rk4 = 4). a's input steps 1 -> 3 at t = 0.5, so its output
+    goes ab2 -> rk4, which b receives as semi_implicit_midpoint (6), then euler (1)."""
+    step = '<mm:Stimuli><mm:Step component="a" variable="u_enumeration"><mm:Point time="0" value="1"/>'
+    step += '<mm:Point time="0.5" value="3"/></mm:Step></mm:Stimuli>'
+    record = "".join(
+        f'<mm:Variable component="{c}" name="{v}"/>' for c in "ab" for v in ("y_enumeration", "u_enumeration")
+    )
+    path = pair(tmp_path / "e.ssd", "alltypes", ENUMS, ENUM_MAP, f"<mm:Record>{record}</mm:Record>" + step)
+    d = run_everywhere(api.load_scenario(path))
+    assert set(d["a.y_enumeration"]) == {2.0, 4.0}
+    assert np.array_equal(d["b.u_enumeration"], np.where(d["a.y_enumeration"] == 2, 6.0, 1.0))
+    assert np.array_equal(d["b.y_enumeration"], d["b.u_enumeration"] % 6 + 1)
+
+
+@pytest.mark.parametrize(
+    "connections, message",
+    [
+        (INTEGER_MAP.replace('source="1"', 'source="2"'),
+         "ssc:IntegerMappingTransformation: a source value is mapped twice"),
+        (INTEGER_MAP.replace('"n"', '"on"').replace('"n_in"', '"on_in"'),
+         "ssc:IntegerMappingTransformation: transforms Integer and Enumeration values only: a.on is Boolean, "
+         "b.on_in is Boolean"),
+        ('<ssd:Connection startElement="a" startConnector="n" endElement="b" endConnector="n_in">'
+         '<ssc:LinearTransformation factor="2"/></ssd:Connection>',
+         "ssc:LinearTransformation: transforms Real values only: a.n is Integer, b.n_in is Integer"),
+    ],
+)  # fmt: skip
+def test_a_transformation_of_the_wrong_type_is_refused_in_one_line(tmp_path, connections, message):
+    problems = validate(pair(tmp_path / "bad.ssd", "discrete", DISCRETE, connections))
+    assert len(problems) == 1 and f"{problems[0].element}: {problems[0].message}".endswith(message), problems

@@ -24,15 +24,18 @@ from .xmlio import tag
 
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")  # ssc:BaseUnit's exponents
 INTEGERS = {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
-# ssc element -> the value types (fmuinfo.type_class) of the connections it may transform
+# ssc element -> (the value types (fmuinfo.type_class) of the connections it may transform, their name)
 ELEMENTS = {
-    "LinearTransformation": FLOATS,
-    "BooleanMappingTransformation": {"Boolean"},
-    "IntegerMappingTransformation": INTEGERS | {"Enumeration"},
-    "EnumerationMappingTransformation": {"Enumeration"},
+    "LinearTransformation": (FLOATS, "Real"),
+    "BooleanMappingTransformation": ({"Boolean"}, "Boolean"),
+    "IntegerMappingTransformation": (INTEGERS | {"Enumeration"}, "Integer and Enumeration"),
+    "EnumerationMappingTransformation": ({"Enumeration"}, "Enumeration"),
 }
-# what each kind of model.Transformation may transform (a map: any held numeric kind)
-KINDS = {"linear": FLOATS, "map": INTEGERS | {"Enumeration", "Boolean"}}
+# the same for each kind of model.Transformation (a map: any held numeric kind)
+KINDS = {
+    "linear": (FLOATS, "Real"),
+    "map": (INTEGERS | {"Enumeration", "Boolean"}, "Integer, Enumeration and Boolean"),
+}
 
 
 @dataclass(frozen=True)
@@ -81,10 +84,10 @@ def read(
     suppress = elem.get("suppressUnitConversion", "false").strip() in ("true", "1")
     if given is not None:
         local = etree.QName(given).localname
-        allowed = ELEMENTS[local]
+        allowed, named = ELEMENTS[local]
         wrong = [f"{n} is {v.type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed]
         if wrong:
-            ctx.at(given, f"ssc:{local} transforms {' or '.join(sorted(allowed))} values: {', '.join(wrong)}")
+            ctx.at(given, f"transforms {named} values only: {', '.join(wrong)}")
             return False, None
         if local != "LinearTransformation":
             mapping = _mapping(ctx, given, local, ends, out, inp)
@@ -164,13 +167,12 @@ def _entry_value(local: str, text: str, var: Var) -> float | None:
 def problem(t: Transformation, ends: tuple[str, str], out: Var, inp: Var) -> str | None:
     """What is wrong with transformation `t` on the connection `ends` from `out` to `inp` (None: it
     can run). A scenario built in Python keeps these rules as a file does."""
-    allowed = KINDS.get(t.kind)
-    if allowed is None:
+    if t.kind not in KINDS:
         return f'transformation kind "{t.kind}": expected "linear" or "map"'
+    allowed, named = KINDS[t.kind]
     wrong = [f"{n} is {v.type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed]
     if wrong:
-        kinds = " or ".join(sorted(allowed))
-        return f"a {t.kind} transformation transforms {kinds} values: {', '.join(wrong)}"
+        return f"a {t.kind} transformation transforms {named} values only: {', '.join(wrong)}"
     numbers = (t.factor, t.offset, *(x for pair in t.mapping for x in pair))
     if not all(isinstance(x, int | float) and math.isfinite(x) for x in numbers):
         return "a transformation's factor, offset and mapped values must be finite numbers"
