@@ -322,3 +322,37 @@ def test_an_enumeration_mapping_maps_item_names(tmp_path):
 def test_a_transformation_of_the_wrong_type_is_refused_in_one_line(tmp_path, connections, message):
     problems = validate(pair(tmp_path / "bad.ssd", "discrete", DISCRETE, connections))
     assert len(problems) == 1 and f"{problems[0].element}: {problems[0].message}".endswith(message), problems
+
+
+def test_libcosim_runs_the_libcosim_scene_with_the_same_transformed_value(tmp_path):
+    """libcosim (libcosimpy) runs the runnable copy of its own scene, the project's gain FMU beside
+    it: the transformed value agrees with this project's. libcosim reads the two parameter bindings
+    as alternative parameter sets and uses the first (identity1.u = 2); SSP applies both in order
+    (4): this project's run is given libcosim's value to compare the transformation alone."""
+    pytest.importorskip("libcosimpy", reason="the peers extra: pip install libcosimpy")
+    import shutil
+
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    text = (LIBCOSIM / "with-project-fmus.ssd").read_text().replace('"project:gain"', '"gain.fmu"')
+    (tmp_path / "SystemStructure.ssd").write_text(text)
+    for ssv in LIBCOSIM.glob("*.gain.ssv"):
+        shutil.copy(ssv, tmp_path)
+    shutil.copy(fmu_path("gain"), tmp_path / "gain.fmu")
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(tmp_path), step_size=10**6)  # 1 ms in ns
+    observer = CosimObserver.create_last_value()
+    ex.add_observer(observer)
+    assert ex.step(10)
+    peer = {}
+    for name in ("identity1", "identity2"):
+        idx = ex.slave_index_from_instance_name(name)
+        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+        peer.update({f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in ("u", "y")})
+    del ex
+    assert peer["identity1.y"] == 2.0 and peer["identity2.u"] == 1.3 * 2.0 + 50.0
+    sc = api.load_scenario(LIBCOSIM / "with-project-fmus.ssd", {"identity1.u": "2"})
+    ours = api.run(replace(sc, record=(("identity2", "u"), ("identity2", "y"))), backend="serial").data
+    assert ours["identity2.u"][-1] == peer["identity2.u"] and ours["identity2.y"][-1] == peer["identity2.y"]
