@@ -217,6 +217,13 @@ def test_a_scenario_built_in_python_keeps_the_unit_rule():
     bad = replace(
         base, connections=(Connection("a", "x", "b", "x_in", transformation=Transformation("map")),)
     )
+    discrete = fmu_path("discrete")
+    ints = replace(base, components=(Component("a", discrete), Component("b", discrete)))
+    huge = Transformation("map", mapping=((1, 2**40),))
+    with pytest.raises(
+        ScenarioError, match=r"mapped value 1.09951e\+12 is outside \[-2147483648, 2147483647\]"
+    ):
+        api.plan(replace(ints, connections=(Connection("a", "n", "b", "n_in", transformation=huge),)))
     with pytest.raises(
         ScenarioError,
         match="a map transformation transforms Integer, Enumeration and Boolean values only: a.x is Real",

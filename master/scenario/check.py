@@ -166,7 +166,7 @@ def _connections(sc: Scenario, infos: Infos, at: At) -> dict[tuple[str, str], st
         t = cn.transformation
         problem = (
             problem
-            or (t is not None and transforms.problem(t, ends, out, inp))
+            or (t is not None and transforms.problem(t, ends, out, inp, infos[ee].fmi_version))
             or transforms.unit_problem(ends, out, inp, t)
         )
         if problem:

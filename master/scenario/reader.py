@@ -290,7 +290,8 @@ def _connections(
         else:  # a transformation or unit conversion (transforms), or a unit mismatch
             ends = (f"{se}.{sc}", f"{ee}.{ec}")
             unit_of = (_unit(ctx, se, sc, out), _unit(ctx, ee, ec, inp))
-            ok, transformation = transforms.read(ctx, elem, ends, out, inp, unit_of, defined)
+            version = ctx.comps[ee].info.fmi_version
+            ok, transformation = transforms.read(ctx, elem, ends, out, inp, unit_of, defined, version)
         first = ctx.driven.get((ee, ec))
         if first is not None:
             ctx.at(elem, f"{ee}.{ec} is already driven by the connection on line {first.sourceline}")

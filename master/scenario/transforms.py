@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from lxml import etree
 
 from .context import Context
-from .fmuinfo import FLOATS, Var
+from .fmuinfo import FLOATS, Var, stimulus_value_problem
 from .model import Transformation
 from .problems import NS_SSC, NS_SSD
 from .xmlio import tag
@@ -75,10 +75,11 @@ def read(
     inp: Var,
     unit_of: tuple[str | None, str | None],
     defined: dict[str, Unit],
+    in_version: str,
 ) -> tuple[bool, Transformation | None]:
-    """The transformation of connection `elem` between `out` and `inp` (named `ends`), with the
-    units `unit_of` of its two ends: (False, None) after reporting a problem, else (True, the
-    transformation or None where the value passes unchanged)."""
+    """The transformation of connection `elem` between `out` and `inp` (named `ends`; `inp` of an
+    FMU of FMI version `in_version`), with the units `unit_of` of its two ends: (False, None) after
+    reporting a problem, else (True, the transformation or None where the value passes unchanged)."""
     chosen = [c for c in elem if etree.QName(c).namespace == NS_SSC and etree.QName(c).localname in ELEMENTS]
     given = chosen[0] if chosen else None
     suppress = elem.get("suppressUnitConversion", "false").strip() in ("true", "1")
@@ -93,7 +94,11 @@ def read(
             mapping = _mapping(ctx, given, local, ends, out, inp)
             if mapping is None:
                 return False, None
-            return True, Transformation("map", mapping=mapping)
+            t = Transformation("map", mapping=mapping)
+            wrong = problem(t, ends, out, inp, in_version)
+            if wrong:
+                ctx.at(given, wrong)
+            return not wrong, t if not wrong else None
     factor, offset = 1.0, 0.0
     if given is not None:
         try:
@@ -164,9 +169,10 @@ def _entry_value(local: str, text: str, var: Var) -> float | None:
         return None
 
 
-def problem(t: Transformation, ends: tuple[str, str], out: Var, inp: Var) -> str | None:
-    """What is wrong with transformation `t` on the connection `ends` from `out` to `inp` (None: it
-    can run). A scenario built in Python keeps these rules as a file does."""
+def problem(t: Transformation, ends: tuple[str, str], out: Var, inp: Var, in_version: str) -> str | None:
+    """What is wrong with transformation `t` on the connection `ends` from `out` to `inp` (of an
+    FMU of FMI version `in_version`); None: it can run. A scenario built in Python keeps these rules
+    as a file does."""
     if t.kind not in KINDS:
         return f'transformation kind "{t.kind}": expected "linear" or "map"'
     allowed, named = KINDS[t.kind]
@@ -176,6 +182,10 @@ def problem(t: Transformation, ends: tuple[str, str], out: Var, inp: Var) -> str
     numbers = (t.factor, t.offset, *(x for pair in t.mapping for x in pair))
     if not all(isinstance(x, int | float) and math.isfinite(x) for x in numbers):
         return "a transformation's factor, offset and mapped values must be finite numbers"
+    for _, target in t.mapping:  # the kernel sets them as the input's type
+        wrong = stimulus_value_problem(inp.type, in_version, target)
+        if wrong:
+            return f"mapped value {target:g} is {wrong} ({ends[1]} is {inp.type})"
     return None
 
 
