@@ -62,9 +62,10 @@ def test_omsimulator_linear_transformation_scene(u, u1):
 # -- extrapolated signals: the transformation acts on the polynomial's value and derivatives --------
 
 
-def coupled(t: Transformation | None, interpolate: bool = False) -> Scenario:
+def coupled(t: Transformation | None, interpolate: bool = False, coupling: str = "jacobi") -> Scenario:
     """An oscillating msd `a` drives the coupling spring of a resting msd `b` (x_in), extrapolated
-    with order 2, b stepping 3 times per macro step or once with its inputs as polynomials."""
+    with order 2 (interpolated where a steps first: Gauss-Seidel), b stepping 3 times per macro step
+    or once with its inputs as polynomials."""
     fmu = fmu_path("msd")
     a = Component("a", fmu, {"x0": 1.0, "c": 4.0, "d": 0.3}, 1, 0)
     b = Component("b", fmu, {"x0": 0.0, "v0": 0.0, "cc": 2.0, "dc": 0.0, "d": 0.5}, 3, 2, interpolate)
@@ -72,17 +73,20 @@ def coupled(t: Transformation | None, interpolate: bool = False) -> Scenario:
     record = (("a", "x"), ("b", "x"), ("b", "v"), ("b", "x_in"))
     H = Fraction(1, 20)
     return Scenario(
-        Path("coupled.ssd"), "coupled", (a, b), (conn,), Fraction(0), Fraction(2), H, record=record
+        Path("coupled.ssd"), "coupled", (a, b), (conn,), Fraction(0), Fraction(2), H, coupling, record=record
     )
 
 
-@pytest.mark.parametrize("interpolate", [False, True])
-def test_a_factor_scales_the_extrapolated_signal_and_its_derivatives(interpolate):
+@pytest.mark.parametrize(
+    "interpolate, coupling",
+    [(False, "jacobi"), (True, "jacobi"), (False, "gauss-seidel"), (True, "gauss-seidel")],
+)
+def test_a_factor_scales_the_extrapolated_signal_and_its_derivatives(interpolate, coupling):
     """b is linear and starts at rest, so an input twice as large gives exactly twice its motion
     (doubling is exact in floating point): the factor reaches every extrapolated value the steps
     use, and every input derivative where b takes its inputs as polynomials."""
-    plain = run_everywhere(coupled(None, interpolate))
-    doubled = run_everywhere(coupled(Transformation("linear", 2.0), interpolate))
+    plain = run_everywhere(coupled(None, interpolate, coupling))
+    doubled = run_everywhere(coupled(Transformation("linear", 2.0), interpolate, coupling))
     assert np.any(plain["b.x"] != 0.0)
     for col in ("b.x", "b.v", "b.x_in"):
         assert np.array_equal(doubled[col], 2.0 * plain[col]), col
@@ -363,3 +367,32 @@ def test_libcosim_runs_the_libcosim_scene_with_the_same_transformed_value(tmp_pa
     sc = api.load_scenario(LIBCOSIM / "with-project-fmus.ssd", {"identity1.u": "2"})
     ours = api.run(replace(sc, record=(("identity2", "u"), ("identity2", "y"))), backend="serial").data
     assert ours["identity2.u"][-1] == peer["identity2.u"] and ours["identity2.y"][-1] == peer["identity2.y"]
+
+
+FLOATS = """<ssd:Connector name="y_float32" kind="output"/><ssd:Connector name="u_float32" kind="input"/>
+<ssd:Connector name="y_vec" kind="output"/><ssd:Connector name="u_vec" kind="input"/>"""
+LINEAR = """<ssd:Connection startElement="a" startConnector="{o}" endElement="b" endConnector="{i}">
+  <ssc:LinearTransformation factor="3" offset="-1"/></ssd:Connection>"""
+
+
+def test_a_linear_transformation_on_float32_and_array_connections(tmp_path):
+    """alltypes (FMI 3.0): a Float32 signal is transformed in double precision, then set as a
+    float; an array's elements are each transformed (y_vec = 2 u_vec, a Float64 vector of 3)."""
+    connections = LINEAR.format(o="y_float32", i="u_float32") + LINEAR.format(o="y_vec", i="u_vec")
+    table = '<mm:Table component="a" variable="u_float32"><mm:Point time="0" value="0.1"/>'
+    table += '<mm:Point time="2" value="1.7"/></mm:Table>'
+    record = "".join(
+        f'<mm:Variable component="{c}" name="{v}"/>'
+        for c in "ab"
+        for v in ("y_float32", "u_float32", "y_vec")
+    )
+    record += '<mm:Variable component="b" name="u_vec"/>'
+    settings = f"<mm:Record>{record}</mm:Record><mm:Stimuli>{table}</mm:Stimuli>"
+    path = pair(tmp_path / "f.ssd", "alltypes", FLOATS, connections, settings)
+    sc = api.load_scenario(path, {"a.u_vec[1]": "0.25", "a.u_vec[3]": "-1.5", "a.p_float32": "0.5"})
+    d = run_everywhere(sc)
+    assert len(np.unique(d["a.y_float32"])) > 10
+    assert np.array_equal(d["b.u_float32"], (3.0 * d["a.y_float32"] - 1.0).astype(np.float32))
+    for e in (1, 2, 3):
+        assert np.array_equal(d[f"b.u_vec[{e}]"], 3.0 * d[f"a.y_vec[{e}]"] - 1.0)
+    assert np.array_equal(d["a.y_vec[1]"], np.full(len(d), 0.5))
