@@ -23,7 +23,7 @@ from master.scenario.fmuinfo import (
     recordable,
     recorded_as,
 )
-from master.scenario.model import Scenario, Stimulus
+from master.scenario.model import Scenario, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
@@ -91,6 +91,9 @@ class Link:
     k_source: int  # effective step ratios
     k_consumer: int
     kind: str = "Real"  # what it carries (`KINDS`, "String", "Binary"): Real, Float32 or a held kind
+    # each input's transformation of the value its output carries (None: none); () where no
+    # input has one, which the kernel's hot path sees as a NULL table
+    transformations: tuple[Transformation | None, ...] = ()
 
     def window(self, n: int, j: int, relaxed: bool = False) -> tuple[int, int]:
         """Source samples for the consumer's step j (inside macro step n).
@@ -208,12 +211,23 @@ class Plan:
         for lk in self.links:
             how = "interpolated" if lk.source_first else "extrapolated"
             how = how if lk.kind in CONTINUOUS else f"held ({lk.kind})"
-            for o, i in zip(lk.outputs, lk.inputs, strict=True):
-                lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}")
+            for n, (o, i) in enumerate(zip(lk.outputs, lk.inputs, strict=True)):
+                t = lk.transformations[n] if lk.transformations else None
+                lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}{described(t)}")
         for s in self.stimuli:
             lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
         lines.extend(f"  note: {n}" for n in self.notes)
         return "\n".join(lines)
+
+
+def described(t: Transformation | None) -> str:
+    """A transformation as `master info` shows it after its connection ("" for none)."""
+    if t is None:
+        return ""
+    if t.kind == "map":
+        return ", mapped " + ", ".join(f"{a:g} -> {b:g}" for a, b in t.mapping)
+    units = f" ({t.units[0]} -> {t.units[1]})" if t.units else ""
+    return f", then {t.factor!r} * value + {t.offset!r}{units}"
 
 
 def connection_name(source: str, output: str, consumer: str, input_: str) -> str:
@@ -266,7 +280,7 @@ def build_plan(
         comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0)
 
     # links: group connections by (source, consumer, order)
-    groups: dict[tuple[str, str, int, str], list[tuple[str, str]]] = {}
+    groups: dict[tuple[str, str, int, str], list[tuple[str, str, Transformation | None]]] = {}
     for cn in sc.connections:
         out = variables[cn.start_component][cn.start_connector]
         inp = variables[cn.end_component][cn.end_connector]
@@ -277,7 +291,7 @@ def build_plan(
             order_ = 0  # discrete signals (integers, Booleans, Strings) are held between communication points
         # an array drives an array of the same shape element by element: a pair per element
         outs, ins = element_names(cn.start_connector, out.shape), element_names(cn.end_connector, inp.shape)
-        pairs = zip(outs, ins, strict=True)
+        pairs = [(o, i, cn.transformation) for o, i in zip(outs, ins, strict=True)]
         groups.setdefault((cn.start_component, cn.end_component, order_, kind), []).extend(pairs)
     links = []
     startup_steps = 0
@@ -293,6 +307,7 @@ def build_plan(
             comps[src].ratio,
             comps[dst].ratio,
             kind,
+            tuple(p[2] for p in pairs) if any(p[2] for p in pairs) else (),
         )
         links.append(lk)
         su = lk.startup()

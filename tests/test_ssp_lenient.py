@@ -164,6 +164,13 @@ def test_a_connection_written_input_to_output_is_turned_around_with_a_note(tmp_p
     b = api.run(original, output=tmp_path / "original.csv").data
     assert a.dtype.names == b.dtype.names
     assert all(np.array_equal(a[n], b[n]) for n in a.dtype.names)
+    # a transformation maps start to end: on a connection written input -> output it is refused
+    transformed = reversed_.replace("/>", '><ssc:LinearTransformation factor="2"/></ssd:Connection>')
+    scene.write_text(text.replace(written, transformed))
+    assert [p.message for p in validate(scene)] == [
+        "a transformation maps the start connector's value to the end's: write this connection "
+        "mass2.F_c -> mass1.F (output to input) to use one"
+    ]
 
 
 @pytest.mark.parametrize(

@@ -56,6 +56,7 @@ void mk_layout(int64_t *sizes) {
     sizes[7] = (int64_t)sizeof(mk_counter);
     sizes[8] = (int64_t)sizeof(mk_shared);
     sizes[9] = (int64_t)sizeof(mk_call);
+    sizes[10] = (int64_t)sizeof(mk_transform);
 }
 
 void mk_constants(int64_t *values) {
@@ -64,6 +65,9 @@ void mk_constants(int64_t *values) {
     values[2] = MK_ERROR_FIELDS;
     values[3] = MK_STRING_SLOT;
     values[4] = MK_TEXT_MAX;
+    values[5] = MK_TRANSFORM_NONE;
+    values[6] = MK_TRANSFORM_LINEAR;
+    values[7] = MK_TRANSFORM_MAP;
 }
 
 static int64_t now_ns(void) {
@@ -612,6 +616,35 @@ static double stimulus_value(const mk_stimulus *s, double t) {
     return s->values[lo];
 }
 
+/* -- transformations (kernel.h: mk_transform) ------------------------------------------------- */
+
+static double transform_value(const mk_transform *t, double v) {
+    if (t->kind == MK_TRANSFORM_LINEAR) return t->factor * v + t->offset;
+    if (t->kind == MK_TRANSFORM_MAP)
+        for (int32_t e = 0; e < t->n_map; e++)
+            if (t->from[e] == v) return t->to[e];
+    return v;
+}
+
+/* The values v[0..n_cols) of link lk's columns, transformed in place. */
+static void transform_values(const mk_link *lk, double *v) {
+    for (int32_t i = 0; i < lk->n_cols; i++) v[i] = transform_value(&lk->transform[i], v[i]);
+}
+
+/* Link lk's inputs of every step and block in u, transformed in place: the value blocks as values, the
+ * derivative blocks scaled by a linear transformation's factor (its offset is constant). */
+static void transform_inputs(const mk_component *c, const mk_link *lk) {
+    const int32_t nb = c->n_blocks;
+    for (int32_t m = 0; m < c->ratio; m++)
+        for (int32_t b = 0; b < nb; b++) {
+            double *v = c->u + ((size_t)m * nb + b) * c->n_in + lk->slot0;
+            if (b < c->n_values) transform_values(lk, v);
+            else
+                for (int32_t i = 0; i < lk->n_cols; i++)
+                    if (lk->transform[i].kind == MK_TRANSFORM_LINEAR) v[i] *= lk->transform[i].factor;
+        }
+}
+
 /* The coupling error estimate of link lk (see kernel.h) at the start of plain macro step n: the
  * prediction made in macro step n - 1 against sample n k_source, which exists now; then the
  * prediction of sample (n + 1) k_source from this macro step's window (still protected: the
@@ -668,6 +701,7 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
                 }
             }
         }
+        if (lk->transform) transform_inputs(c, lk);
     }
     /* String and Binary links: the held sample of each step, copied (the source may overwrite its
      * slot once this component has taken its inputs, before the step sets them) */
@@ -833,6 +867,7 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const mk_component *src = &k->components[lk->source];
         const double *row = src->hist + (((n + 1) * lk->k_source) % src->cap) * src->n_out;
         for (int32_t i = 0; i < lk->n_cols; i++) c->scratch[i] = row[lk->columns[i]];
+        if (lk->transform) transform_values(lk, c->scratch);
         const int32_t typed = c->n_in - c->n_in_typed; /* a link's inputs are of one kind */
         const int32_t kind = lk->slot0 < c->n_in_real                    ? MK_REAL_SAMPLE
                              : lk->slot0 >= typed                        ? c->in_kinds[lk->slot0 - typed]
@@ -952,6 +987,7 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
         const mk_link *lk = &c->links[l];
         const mk_component *src = &k->components[lk->source];
         for (int32_t i = 0; i < lk->n_cols; i++) u[lk->slot0 + i] = src->hist[lk->columns[i]];
+        if (lk->transform) transform_values(lk, u + lk->slot0);
     }
     for (int32_t s = 0; s < c->n_stimuli; s++)
         u[c->stimuli[s].slot] = stimulus_value(&c->stimuli[s], point_time(c, 0));

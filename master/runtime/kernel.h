@@ -86,6 +86,22 @@ typedef struct {
     const uint32_t *vrs;
 } mk_call;
 
+/* A connection's transformation of the value it carries (SSP ssc:LinearTransformation with any unit
+ * conversion folded in, ssc:BooleanMappingTransformation, ssc:IntegerMappingTransformation,
+ * ssc:EnumerationMappingTransformation), applied to the coupled value once the source's signal is
+ * extrapolated: MK_TRANSFORM_LINEAR gives factor * value + offset (a derivative block: factor *
+ * derivative), MK_TRANSFORM_MAP the `to` value of the first `from` value equal to it (held signals;
+ * a value not among them passes unchanged), MK_TRANSFORM_NONE passes it on. The kinds are those of
+ * master.scenario.model.TRANSFORMATIONS, in that order (mk_constants lets Python check them). */
+enum { MK_TRANSFORM_NONE = 0, MK_TRANSFORM_LINEAR = 1, MK_TRANSFORM_MAP = 2 };
+
+typedef struct {
+    int32_t kind;
+    int32_t n_map;
+    double factor, offset;
+    const double *from, *to; /* [n_map] */
+} mk_transform;
+
 #define MK_ERROR_FIELDS 6 /* mk_link.error per column: max, sum of squares, count, min, max, latest */
 
 /* One link into a consumer: `n_cols` outputs of `source` drive inputs slot0.. of the consumer.
@@ -122,6 +138,9 @@ typedef struct {
     const double *predict; /* [terms], NULL: no estimate (a source that goes first) */
     double *predicted;     /* [n_cols] */
     double *error;         /* [n_cols][MK_ERROR_FIELDS] */
+    /* [n_cols]: each column's transformation; NULL where none has one (the hot path checks this
+     * once per link, never per value) */
+    const mk_transform *transform;
 } mk_link;
 
 /* A step or table signal on an input slot of its component (see master/coupling.py). */
@@ -329,7 +348,7 @@ typedef struct {
 /* Sizes of the structures, for the ctypes mirror to check itself against. */
 void mk_layout(int64_t *sizes);
 /* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS,
- * MK_STRING_SLOT, MK_TEXT_MAX. */
+ * MK_STRING_SLOT, MK_TEXT_MAX, MK_TRANSFORM_NONE, MK_TRANSFORM_LINEAR, MK_TRANSFORM_MAP. */
 void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */

@@ -17,6 +17,8 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
+from master.scenario.model import TRANSFORMATIONS
+
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
 HEADER = HERE / "kernel.h"
@@ -67,6 +69,9 @@ CONSTANTS = {
     "MK_ERROR_FIELDS": ERROR_FIELDS,
     "MK_STRING_SLOT": STRING_SLOT,
     "MK_TEXT_MAX": TEXT_MAX,
+    # a connection's transformation kinds (kernel.h mk_transform): their codes are their places in
+    # the one table of them, master.scenario.model.TRANSFORMATIONS
+    **{f"MK_TRANSFORM_{kind.upper()}": code for code, kind in enumerate(TRANSFORMATIONS)},
 }
 
 _p = C.c_void_p
@@ -105,6 +110,17 @@ class Call(C.Structure):
     ]
 
 
+class Transform(C.Structure):
+    _fields_ = [
+        ("kind", _i32),
+        ("n_map", _i32),
+        ("factor", _f64),
+        ("offset", _f64),
+        ("from_", C.POINTER(_f64)),
+        ("to", C.POINTER(_f64)),
+    ]
+
+
 class Link(C.Structure):
     _fields_ = [
         ("source", _i32),
@@ -126,6 +142,7 @@ class Link(C.Structure):
         ("predict", C.POINTER(_f64)),
         ("predicted", C.POINTER(_f64)),
         ("error", C.POINTER(_f64)),
+        ("transform", C.POINTER(Transform)),
     ]
 
 
@@ -295,7 +312,7 @@ class Kernel(C.Structure):
     ]
 
 
-STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call)
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform)
 
 
 class KernelBuildError(RuntimeError):

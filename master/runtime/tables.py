@@ -27,6 +27,7 @@ from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, lookup, recorded_as
+from master.scenario.model import TRANSFORMATIONS
 from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, connection_name, value_kind
 
 ROW_CAPACITY = 4096  # rows of the results ring
@@ -443,8 +444,29 @@ class CompiledPlan:
             offsets=_ptr(self._array(offsets, np.int64), C.c_int64),
             weights=_ptr(self._array(w, np.float64), C.c_double),
             zero=_ptr(self._array(zero, np.uint8), C.c_uint8),
+            transform=self._transforms(lk),
             **extra,
         )
+
+    def _transforms(self, lk: Link):
+        """kernel.h's mk_transform of each of `lk`'s columns, or NULL where none has one."""
+        if not lk.transformations:
+            return None
+        table = (native.Transform * len(lk.transformations))()
+        for i, t in enumerate(lk.transformations):
+            if t is None:
+                continue  # kind 0: MK_TRANSFORM_NONE
+            pairs = np.array(t.mapping, dtype=np.float64).reshape(-1, 2)
+            table[i] = native.Transform(
+                kind=TRANSFORMATIONS.index(t.kind),
+                n_map=len(pairs),
+                factor=t.factor,
+                offset=t.offset,
+                from_=_ptr(self._array(pairs[:, 0], np.float64), C.c_double),
+                to=_ptr(self._array(pairs[:, 1], np.float64), C.c_double),
+            )
+        self._keep.append(table)
+        return table
 
     def _string_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu, links: list[Link]) -> None:
         """A component's String and Binary connections (kernel.h): its coupled text outputs (their

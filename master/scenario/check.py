@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from . import fmuinfo
+from . import fmuinfo, transforms
 from .fmuinfo import (
     FmuInfo,
     SourceError,
@@ -162,14 +162,15 @@ def _connections(sc: Scenario, infos: Infos, at: At) -> dict[tuple[str, str], st
             f"{se}.{sc_}", out.type, infos[se].fmi_version, f"{ee}.{ec}", inp.type, infos[ee].fmi_version,
             out.shape, inp.shape,
         )  # fmt: skip
+        ends = (f"{se}.{sc_}", f"{ee}.{ec}")
+        t = cn.transformation
+        problem = (
+            problem
+            or (t is not None and transforms.problem(t, ends, out, inp, infos[ee].fmi_version))
+            or transforms.unit_problem(ends, out, inp, t)
+        )
         if problem:
             at(where, problem)
-        elif out.unit and inp.unit and out.unit != inp.unit:
-            at(
-                where,
-                f'unit mismatch: {se}.{sc_} is in "{out.unit}", {ee}.{ec} in "{inp.unit}"'
-                " (unit conversion is not supported)",
-            )
         if (ee, ec) in driven:
             at(where, f"{ee}.{ec} is already driven by {driven[(ee, ec)]}")
             continue

@@ -27,6 +27,28 @@ class Component:
     group: str | None = None  # parallel backend: components sharing a group share a worker
 
 
+# what a connection may do to the value it carries, by kind; the index is the kernel's code
+# (kernel.h: MK_TRANSFORM_*, which master.runtime.native checks against these)
+TRANSFORMATIONS = ("none", "linear", "map")
+
+
+@dataclass(frozen=True)
+class Transformation:
+    """A connection's transformation of the coupled value, applied after extrapolating the source
+    (SSP 1.0 section 5.3.3): "linear" gives factor * value + offset (an ssc:LinearTransformation
+    with any unit conversion folded in before it), "map" the target of the `mapping` entry whose
+    source equals the value (ssc:Boolean/Integer/EnumerationMappingTransformation; a value no entry
+    names passes unchanged)."""
+
+    kind: Literal["linear", "map"]
+    factor: float = 1.0
+    offset: float = 0.0
+    mapping: tuple[tuple[float, float], ...] = ()  # (source value, target value); Booleans 0 / 1
+    # the (output unit, input unit) that factor and offset convert between, or that the file asks
+    # not to convert (suppressUnitConversion); None: the units agree or one end has none
+    units: tuple[str, str] | None = None
+
+
 @dataclass(frozen=True)
 class Connection:
     """Output `start_connector` of `start_component` drives input `end_connector` of `end_component`."""
@@ -36,6 +58,7 @@ class Connection:
     end_component: str
     end_connector: str
     extrapolation_order: int | None = None  # None: the consumer component's default
+    transformation: Transformation | None = None
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,10 @@ from pathlib import Path
 
 from lxml import etree
 
-from . import archive, bindings, fmuinfo, loops, settings, xmlio
+from . import archive, bindings, fmuinfo, loops, settings, transforms, xmlio
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
-from .model import Component, Connection, Scenario
+from .model import Component, Connection, Scenario, Transformation
 from .numbers import parse_time
 from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError, describe
 from .xmlio import tag
@@ -130,7 +130,7 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     ctx = Context(problems, shown, ssd.parent, inside)
 
     _components(ctx, system)
-    connections, links = _connections(ctx, system)
+    connections, links, transformed = _connections(ctx, system)
     times = _experiment(ctx, root)
     setup = settings.read(ctx, root, system, times)
     params = bindings.read(ctx, system, overrides)
@@ -156,7 +156,11 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         if c.info is not None
     )
     final = tuple(
-        Connection(*key, extrapolation_order=setup.connection_order.get(key[2:]))
+        Connection(
+            *key,
+            extrapolation_order=setup.connection_order.get(key[2:]),
+            transformation=transformed.get(key[2:]),
+        )
         for key in (k for k, _ in connections)
     )
     return Scenario(
@@ -252,11 +256,15 @@ def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
 Link = tuple[tuple[str, str, str, str], etree._Element]  # ((start comp, output, end comp, input), element)
 
 
-def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list[Link]]:
+def _connections(
+    ctx: Context, system: etree._Element
+) -> tuple[list[Link], list[Link], dict[tuple[str, str], Transformation]]:
     """(connections without problems, every output -> input link even with a type or unit problem:
-    the algebraic loop check needs the latter)."""
+    the algebraic loop check needs the latter, the transformations of the former by input)."""
     good: list[Link] = []
     links: list[Link] = []
+    transformed: dict[tuple[str, str], Transformation] = {}  # input -> its connection's transformation
+    defined = transforms.units(ctx, system.getroottree().getroot())  # ssd:Units, for unit conversion
     for elem in system.findall(f"{tag(NS_SSD, 'Connections')}/{tag(NS_SSD, 'Connection')}"):
         se, sc, ee, ec = (
             elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
@@ -266,11 +274,6 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         if se is None or ee is None:
             ctx.at(elem, "connections to the system's own connectors are not supported")
             continue
-        for child in elem:
-            if etree.QName(child).localname not in ("ConnectionGeometry", "Annotations"):
-                ctx.at(
-                    elem, f"{xmlio.qualified(child.tag)}: transformations on connections are not supported"
-                )
         out = _end(ctx, elem, se, sc)
         inp = _end(ctx, elem, ee, ec)
         if out is None or inp is None:
@@ -287,16 +290,23 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
             f"{se}.{sc}", out.type, ctx.comps[se].info.fmi_version, f"{ee}.{ec}", inp.type,
             ctx.comps[ee].info.fmi_version, out.shape, inp.shape,
         )  # fmt: skip
+        transformation = None
         if problem:
             ctx.at(elem, problem)
             ok = False
-        elif out.unit and inp.unit and out.unit != inp.unit:
-            ctx.at(
-                elem,
-                f'unit mismatch: {se}.{sc} is in "{out.unit}", {ee}.{ec} in "{inp.unit}"'
-                " (unit conversion is not supported)",
-            )
-            ok = False
+        else:  # a transformation or unit conversion (transforms), or a unit mismatch
+            ends = (f"{se}.{sc}", f"{ee}.{ec}")
+            unit_of = (_unit(ctx, se, sc, out), _unit(ctx, ee, ec, inp))
+            version = ctx.comps[ee].info.fmi_version
+            ok, transformation = transforms.read(ctx, elem, ends, out, inp, unit_of, defined, version)
+            if (
+                ok
+                and (se, sc) != (elem.get("startElement"), elem.get("startConnector"))
+                and _written_transformation(elem)
+            ):
+                ctx.at(elem, "a transformation maps the start connector's value to the end's: write this "
+                       f"connection {se}.{sc} -> {ee}.{ec} (output to input) to use one")  # fmt: skip
+                ok = False
         first = ctx.driven.get((ee, ec))
         if first is not None:
             ctx.at(elem, f"{ee}.{ec} is already driven by the connection on line {first.sourceline}")
@@ -304,10 +314,25 @@ def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list
         ctx.driven[(ee, ec)] = elem
         if ok:
             good.append(((se, sc, ee, ec), elem))
-    return good, links
+            if transformation is not None:
+                transformed[(ee, ec)] = transformation
+    return good, links, transformed
+
+
+def _unit(ctx: Context, comp: str, connector: str, var: fmuinfo.Var) -> str | None:
+    """The unit of a connection's end: its FMU variable's, else the one its ssd:Connector declares."""
+    if var.unit:
+        return var.unit
+    typed = [t for t in ctx.comps[comp].connectors[connector] if etree.QName(t).namespace == NS_SSC]
+    return next((t.get("unit") for t in typed if t.get("unit")), None)
 
 
 End = tuple[str, str, fmuinfo.Var]  # (component, connector, its FMU variable)
+
+
+def _written_transformation(elem: etree._Element) -> bool:
+    """Whether a connection carries a transformation element (ssc:LinearTransformation, a mapping)."""
+    return any(etree.QName(child).localname.endswith("Transformation") for child in elem.iter("{*}*"))
 
 
 def _oriented(ctx: Context, elem: etree._Element, start: End, end: End) -> tuple[End, End]:
