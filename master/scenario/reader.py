@@ -143,9 +143,13 @@ def _read(
         return None
     root = tree.getroot()
     if root.tag != tag(NS_SSD, "SystemStructureDescription"):
-        problems.at(shown, root, "not an SSP 1.0 ssd:SystemStructureDescription")
+        problems.at(shown, root, "not an SSP ssd:SystemStructureDescription")
         return None
-    xmlio.check_schema(tree, xmlio.ssd_schema(), shown, problems)
+    major = xmlio.ssp_major(root)
+    if major is None:
+        problems.at(shown, root, f'version "{root.get("version")}": this master reads SSP 1.0 and 2.0 files')
+        return None
+    xmlio.check_schema(tree, xmlio.ssd_schema(major), shown, problems)
     system = root.find(tag(NS_SSD, "System"))
     if system is None:
         return None  # the schema check has said so
