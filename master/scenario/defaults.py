@@ -55,7 +55,7 @@ def choose(
         k = macro / step
         if k.denominator == 1 and 1 < k <= MAX_STEP_RATIO:
             s.step_ratio[name] = int(k)
-            s.origins[f"{name} communication step"] = f"{seconds(step)}, {where}"
+            s.origins[f"{name} communication step"] = where
         elif k != 1:
             why = f"{where} {seconds(step)} does not divide it"
             s.origins[f"{name} communication step"] = f"the macro step ({why})"
