@@ -155,7 +155,8 @@ def _scene(api, scenario, stop_time, set_values, record, output_interval) -> Sce
     if isinstance(scenario, Scenario):
         return api.apply_overrides(scenario, stop_time, record, set_values, output_interval)
     texts = dict(api._split_set(s) for s in set_values) if set_values else None  # checked by the reader
-    return api.apply_overrides(api.load_scenario(scenario, texts), stop_time, record, None, output_interval)
+    sc = api.load_scenario(scenario, texts, stop_time)  # a file may lack a stopTime: --stop-time gives it
+    return api.apply_overrides(sc, stop_time, record, None, output_interval)
 
 
 def _units(recorded: dict[str, str | None], ranges, columns: list[str], metrics) -> dict[str, str | None]:
