@@ -129,6 +129,30 @@ def test_libcosim_step_hints_give_the_macro_step_and_a_component_step(tmp_path):
     assert sc.origins["Gain1 communication step"] == "its StepSizeHint"
 
 
+def test_own_steps_without_a_common_macro_step_are_one_line_saying_how_to_set_it(tmp_path):
+    hint = OSP_HINT.replace("0.0025", "0.003")  # Gain1 0.003 s, Add1 (its FMU) 0.002 s
+    (problem,) = validate(scene(tmp_path, gain_annotation=hint), stop_time=1)
+    assert problem.message == (
+        "no macro step: the components' own steps (Gain1 0.003 s, Add1 0.002 s) do not all divide the "
+        "largest; give --macro-step H (seconds) or add the settings annotation (docs/scenario-format.md)"
+    )
+    sc = load(scene(tmp_path, gain_annotation=hint), stop_time=Fraction("0.6"), macro_step=Fraction("0.006"))
+    assert {c.name: c.step_ratio for c in sc.components} == {"Gain1": 2, "Add1": 3}
+
+
+def test_a_bad_step_hint_is_named(tmp_path):
+    bad = OSP_ALGORITHM.replace('baseStepSize="0.01"', 'baseStepSize="-1"')
+    (problem,) = validate(scene(tmp_path, "1.0", bad), stop_time=1)
+    assert problem.element == "osp:FixedStepAlgorithm"
+    assert problem.message == "baseStepSize must be positive"
+
+
+def test_a_step_far_finer_than_the_macro_step_is_not_taken(tmp_path):
+    sc = load(scene(tmp_path), stop_time=Fraction(1000), macro_step=Fraction(1000))  # 500000 FMU steps
+    assert [c.step_ratio for c in sc.components] == [1, 1]
+    assert "too fine" in sc.origins["Gain1 communication step"]
+
+
 def test_omsimulator_master_step_gives_the_macro_step(tmp_path):
     exp = '<ssd:DefaultExperiment startTime="0" stopTime="0.1"/>'
     sc = load(scene(tmp_path, "1.0", exp, system_annotation=OMS_MASTER))

@@ -57,8 +57,8 @@ def choose(
             s.step_ratio[name] = int(k)
             s.origins[f"{name} communication step"] = where
         elif k != 1:
-            why = f"{where} {seconds(step)} does not divide it"
-            s.origins[f"{name} communication step"] = f"the macro step ({why})"
+            why = "does not divide it" if k.denominator != 1 or k < 1 else f"is 1/{k} of it: too fine"
+            s.origins[f"{name} communication step"] = f"the macro step ({where} {seconds(step)} {why})"
     if times is not None:
         exp = root.find(tag(NS_SSD, "DefaultExperiment"))
         whole = steps_problem(times[1] - times[0], macro)
