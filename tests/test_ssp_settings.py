@@ -237,10 +237,13 @@ def test_cli_runs_the_omsimulator_ssp_2_0_file(tmp_path):
 
 
 def test_cli_runs_the_omsimulator_ssp_1_0_file(tmp_path):
-    """SSP 1.0 with OMSimulator's FixedStepMaster 0.001 s; addP's inputs stay 0, so y = 0."""
+    """SSP 1.0 with OMSimulator's FixedStepMaster 0.001 s and stopTime 1.  addP.y = k1 u1 + k2 u2,
+    where the system's parameter set (k1 = -200, k2 = -300) beats the component's (10, 20) as SSP
+    and OMSimulator have it: with u1 = 0.5 and u2 = 2, y = -100 - 600 = -700."""
     waits_for_the_rest(TOPLEVEL)
     out = tmp_path / "out.csv"
-    r = master("run", str(TOPLEVEL), "-o", str(out), "-q")
+    r = master("run", str(TOPLEVEL), "-o", str(out), "-q", "--set", "addP.u1=0.5", "--set", "addP.u2=2")
     assert r.returncode == 0, r.stderr
     data = read_csv(out)
-    assert len(data) == 1001 and not data["addP.y"].any()
+    assert data["time"][-1] == pytest.approx(1.0) and len(data) == 1001
+    assert list(data["addP.y"]) == [-700.0] * 1001
