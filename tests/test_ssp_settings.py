@@ -161,10 +161,11 @@ def test_omsimulator_master_step_gives_the_macro_step(tmp_path):
 
 
 def test_a_stop_time_that_is_not_whole_macro_steps_is_one_line(tmp_path):
-    problems = validate(scene(tmp_path), stop_time=Fraction("0.003"))
-    assert [p.message for p in problems] == [
-        "stopTime - startTime = 0.003 s is not a whole number of macro steps (0.002 s)"
-    ]
+    (problem,) = validate(scene(tmp_path), stop_time=Fraction("0.003"))
+    assert (problem.line, problem.element) == (None, "stop time")  # the option's, not the file's
+    assert problem.message == (
+        "stop time - start time = 0.003 s is not a whole number of macro steps (0.002 s)"
+    )
 
 
 def test_an_ssp_version_this_master_does_not_read_is_refused_by_name(tmp_path):

@@ -17,6 +17,7 @@ from pathlib import Path
 from lxml import etree
 
 from . import archive, bindings, defaults, fmuinfo, loops, settings, xmlio
+from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
 from .model import Component, Connection, Scenario
@@ -159,11 +160,12 @@ def _read(
     _components(ctx, system)
     connections, links = _connections(ctx, system)
     times, origins = _experiment(ctx, root, stop_time)
+    in_file = times if stop_time is None else None  # a command-line stop time is checked below
     annotation = settings.find(ctx, root, system)
     if annotation is not None:
-        setup = settings.read(ctx, annotation, root, system, times, macro_step)
+        setup = settings.read(ctx, annotation, root, system, in_file, macro_step)
     else:  # a file written by another tool: macro step from the command line, a hint, the FMUs
-        setup = defaults.choose(ctx, root, system, times, macro_step)
+        setup = defaults.choose(ctx, root, system, in_file, macro_step)
     params = bindings.read(ctx, system, overrides)
     if setup is not None:  # an interpolating FMU's communication step becomes its internal step,
         for name, h in setup.internal_step.items():  # unless a binding chose one
@@ -190,7 +192,7 @@ def _read(
         Connection(*key, extrapolation_order=setup.connection_order.get(key[2:]))
         for key in (k for k, _ in connections)
     )
-    return Scenario(
+    scenario = Scenario(
         path=path.resolve(),
         name=root.get("name", ""),
         components=components,
@@ -206,6 +208,9 @@ def _read(
         record_coupling_errors=setup.record_coupling_errors,
         origins={**origins, **setup.origins},
     )
+    if stop_time is not None:  # named as the option, as `check` names a stop time set after reading
+        problems.items.extend(time_problems(scenario))
+    return scenario
 
 
 def _components(ctx: Context, system: etree._Element) -> None:
