@@ -201,6 +201,7 @@ def _sweep_parser(sub) -> None:
     s.add_argument("--series", action="store_true", help="also keep every case's rows in DIR/series.zarr")
     s.add_argument("--plot", metavar="PNG", help="plot each metric against the varied parameters")
     _scene_options(s)
+    _time_options(s, stop=False)
     s.add_argument("--step-timeout", type=float, metavar="S", help="a hang, per macro step of a case (s)")
     s.add_argument("--progress", action="store_true", help="show progress even when stderr is not a tty")
     s.add_argument("-q", "--quiet", action="store_true", help="print errors only")
@@ -454,6 +455,7 @@ def _sweep(args: argparse.Namespace, quiet: bool) -> int:
             scheduler=args.scheduler,
             workers=args.workers,
             stop_time=args.stop_time,
+            macro_step=args.macro_step,
             set_values=args.set,
             record=args.record,
             output_interval=args.output_interval,
