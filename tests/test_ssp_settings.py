@@ -8,6 +8,7 @@ stepSize 0.002 s)."""
 
 import subprocess
 import sys
+import zipfile
 from fractions import Fraction
 from pathlib import Path
 
@@ -36,6 +37,7 @@ def scene(
     system_annotation: str = "",
     gain_annotation: str = "",
     name: str = "add-gain",
+    sources: tuple[str, str] = (str(GAIN), str(ADD)),
 ) -> Path:
     """Gain1 (u = 4, k = 2.5) drives Add1.u1 (k1 = 0.5, u2 = 1, k2 = 3): Add1.y = 0.5 * 10 + 3 * 1 = 8,
     exactly, from the first macro step on.  Written as another tool would: no settings annotation."""
@@ -49,7 +51,7 @@ def scene(
     xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd">
   <ssd:System name="add-gain">
     <ssd:Elements>
-      <ssd:Component name="Gain1" source="{GAIN}">
+      <ssd:Component name="Gain1" source="{sources[0]}">
         <ssd:Connectors>
           <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>
         </ssd:Connectors>
@@ -61,7 +63,7 @@ def scene(
         </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
         {gain_annotation}
       </ssd:Component>
-      <ssd:Component name="Add1" source="{ADD}">
+      <ssd:Component name="Add1" source="{sources[1]}">
         <ssd:Connectors>
           <ssd:Connector name="u1" kind="input"><ssc:Real/></ssd:Connector>
           <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>
@@ -202,6 +204,20 @@ def test_cli_runs_a_file_without_our_annotation_and_info_says_where_settings_cam
     assert "stop time = 0.02 s: from command line (--stop-time)" in r.stdout
     r = master("validate", str(path))
     assert r.returncode == 1 and "give --stop-time T" in r.stdout
+
+
+def test_cli_runs_an_ssp_2_0_archive_without_our_annotation(tmp_path):
+    ssd = scene(tmp_path, sources=("resources/Gain.fmu", "resources/Add.fmu"))
+    archive = tmp_path / "add-gain.ssp"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.write(ssd, "SystemStructure.ssd")
+        z.write(GAIN, "resources/Gain.fmu")
+        z.write(ADD, "resources/Add.fmu")
+    out = tmp_path / "out.csv"
+    r = master("run", str(archive), "--stop-time", "0.01", "--macro-step", "0.01", "-o", str(out), "-q")
+    assert r.returncode == 0, r.stderr
+    data = read_csv(out)
+    assert list(data["time"]) == [0.0, 0.01] and data["Add1.y"][1] == 8.0
 
 
 # The third-party files themselves.  What they need beyond items 1 and 2 (transformations on
