@@ -32,14 +32,29 @@ class UsageError(Exception):
     """Bad input from the user (option, value or file), with a message saying what and where."""
 
 
-def load_scenario(path: str | Path, overrides: dict[str, str] | None = None) -> Scenario:
-    """Read a scenario file (.ssd / .ssp); overrides: "component.variable" -> value text."""
+def load_scenario(
+    path: str | Path,
+    overrides: dict[str, str] | None = None,
+    stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
+) -> Scenario:
+    """Read a scenario file (.ssd / .ssp); overrides: "component.variable" -> value text;
+    stop_time, macro_step (s): as --stop-time and --macro-step, over the file's."""
     from master.scenario import load
 
     path = Path(path)
     if not path.exists():
         raise UsageError(f"{path}: no such scenario file")
-    return load(path, overrides or None)
+    return load(path, overrides or None, **_times(stop_time, macro_step))
+
+
+def _times(stop_time, macro_step) -> dict[str, Fraction | None]:
+    """--stop-time and --macro-step as exact times for the reader (a macro step must be positive)."""
+    stop = _parse_time("--stop-time", stop_time) if stop_time is not None else None
+    macro = _parse_time("--macro-step", macro_step) if macro_step is not None else None
+    if macro is not None and macro <= 0:
+        raise UsageError(f"--macro-step {macro_step}: must be positive")
+    return {"stop_time": stop, "macro_step": macro}
 
 
 def parse_value(text: str) -> Value:
@@ -198,6 +213,7 @@ def run(
     scenario: str | Path | Scenario,
     *,
     stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
     output: str | Path | None = None,
     record: list[str] | None = None,
     set_values: dict[str, Value] | list[str] | None = None,
@@ -212,7 +228,9 @@ def run(
 ) -> RunResult:
     """Run a scenario (file or `Scenario`) and return its results.
 
-    stop_time, output_interval in s; `record` and `set_values` use "component.variable" names;
+    stop_time, macro_step, output_interval in s (a file's macro step is replaced while it is read:
+    the components' steps follow it as docs/scenario-format.md says); `record` and `set_values`
+    use "component.variable" names;
     `real_time` paces the run (1.0: wall clock speed). backend: "serial" (one worker process runs
     every FMU), "parallel" (a worker process per component or group), "auto" (parallel when a
     timed serial trial says it pays) or "in-process" (the FMUs in this process: no protection
@@ -231,14 +249,17 @@ def run(
     """
     extras.require("run", {"plot": plot})
     if isinstance(scenario, Scenario):
+        if macro_step is not None:  # the step ratios are kept
+            scenario = dataclasses.replace(scenario, macro_step=_times(None, macro_step)["macro_step"])
         sc = apply_overrides(scenario, stop_time, record, set_values, output_interval, record_coupling_errors)
     else:  # the reader converts and checks --set values against the FMUs
         texts = dict(_split_set(s) for s in set_values) if isinstance(set_values, list) else None
         if isinstance(set_values, dict):  # bytes (a Binary) as the hex digits the reader takes
             texts = {k: v.hex() if isinstance(v, bytes) else str(v) for k, v in set_values.items()}
         sc = apply_overrides(
-            load_scenario(scenario, texts), stop_time, record, None, output_interval, record_coupling_errors
-        )
+            load_scenario(scenario, texts, stop_time, macro_step),
+            stop_time, record, None, output_interval, record_coupling_errors,
+        )  # fmt: skip
     p = plan(sc)
     for note in p.notes:
         log.info(note)
@@ -341,25 +362,45 @@ def _variables(sc: Scenario):
     return find
 
 
-def validate(path: str | Path) -> list:
+def validate(
+    path: str | Path,
+    stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
+) -> list:
     """Problems found in a scenario file (empty: none); see `master.scenario.validate`."""
     from master.scenario import validate as _validate
 
-    return list(_validate(Path(path)))
+    return list(_validate(Path(path), **_times(stop_time, macro_step)))
 
 
-def info(path: str | Path) -> str:
-    """Text description of an FMU (variables, capabilities) or a scenario (components, schedule)."""
+def info(
+    path: str | Path,
+    stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
+) -> str:
+    """Text description of an FMU (variables, capabilities) or a scenario (components, where each
+    setting came from, schedule)."""
     path = Path(path)
     if path.suffix.lower() == ".fmu":
         return fmu_info(path)
-    sc = load_scenario(path)
+    sc = load_scenario(path, None, stop_time, macro_step)
     p = plan(sc)
     lines = [f"scenario {sc.name} ({sc.path})"]
     for c in sc.components:
         lines.append(f"  component {c.name}: {c.fmu_path}")
+    values = {"start time": sc.start_time, "stop time": sc.stop_time, "macro step": sc.macro_step}
+    values |= {f"{c.name} communication step": sc.macro_step / c.step_ratio for c in sc.components}
+    for setting, origin in sc.origins.items():
+        shown = f" = {_seconds(values[setting])}" if setting in values else ""
+        lines.append(f"  {setting}{shown}: from {origin}")
     lines.append(p.describe())
     return "\n".join(lines)
+
+
+def _seconds(t: Fraction) -> str:
+    from master.scenario.settings import seconds
+
+    return seconds(t)
 
 
 def fmu_info(path: Path) -> str:

@@ -37,6 +37,7 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
     r.add_argument("scenario", help="scenario file (.ssd or .ssp), or a folder holding one")
     _scene_options(r)
+    _time_options(r, stop=False)  # --stop-time: in _scene_options
     r.add_argument(
         "-o",
         "--output",
@@ -98,11 +99,13 @@ def _parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file", description="Check a scenario file.")
     v.add_argument("scenario")
+    _time_options(v)
 
     i = sub.add_parser(
         "info", help="describe an FMU or a scenario", description="Variables, capabilities, schedule."
     )
     i.add_argument("path", help=".fmu or scenario file")
+    _time_options(i)
 
     pl = sub.add_parser("plot", help="plot a results CSV file", description="Plot a results CSV file.")
     pl.add_argument("csv")
@@ -148,6 +151,13 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _time_options(p: argparse.ArgumentParser, stop: bool = True) -> None:
+    """The times a scenario file may lack (one written by another tool): run, validate, info."""
+    if stop:
+        p.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
+    p.add_argument("--macro-step", metavar="H", help="macro step in s (overrides the scenario)")
+
+
 def _scene_options(p: argparse.ArgumentParser) -> None:
     """What `run` and `sweep` change of the scenario, alike."""
     p.add_argument("--stop-time", metavar="T", help="stop time in s (overrides the scenario)")
@@ -191,6 +201,7 @@ def _sweep_parser(sub) -> None:
     s.add_argument("--series", action="store_true", help="also keep every case's rows in DIR/series.zarr")
     s.add_argument("--plot", metavar="PNG", help="plot each metric against the varied parameters")
     _scene_options(s)
+    _time_options(s, stop=False)
     s.add_argument("--step-timeout", type=float, metavar="S", help="a hang, per macro step of a case (s)")
     s.add_argument("--progress", action="store_true", help="show progress even when stderr is not a tty")
     s.add_argument("-q", "--quiet", action="store_true", help="print errors only")
@@ -317,6 +328,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             result = api.run(
                 args.scenario,
                 stop_time=args.stop_time,
+                macro_step=args.macro_step,
                 output=output,
                 record=args.record,
                 set_values=args.set,
@@ -348,14 +360,14 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
 
         return examples_main(args.dir, args.force)
     if args.command == "validate":
-        problems = api.validate(args.scenario)
+        problems = api.validate(args.scenario, args.stop_time, args.macro_step)
         for pr in problems:
             print(pr)
         if not problems:
             print(f"{args.scenario}: ok")
         return 1 if problems else 0
     if args.command == "info":
-        print(api.info(args.path))
+        print(api.info(args.path, args.stop_time, args.macro_step))
         return 0
     if args.command == "plot":
         from master.recorder import number_columns, plot_result, read_csv
@@ -443,6 +455,7 @@ def _sweep(args: argparse.Namespace, quiet: bool) -> int:
             scheduler=args.scheduler,
             workers=args.workers,
             stop_time=args.stop_time,
+            macro_step=args.macro_step,
             set_values=args.set,
             record=args.record,
             output_interval=args.output_interval,

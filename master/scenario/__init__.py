@@ -1,5 +1,6 @@
-"""Scenario files: SSP 1.0 (.ssd / .ssp with .ssv parameter sets) plus the master's settings
-annotation, read into a validated, immutable `Scenario`.  Format: docs/scenario-format.md."""
+"""Scenario files: SSP 1.0 or 2.0 (.ssd / .ssp with .ssv parameter sets) plus the master's
+optional settings annotation, read into a validated, immutable `Scenario`.
+Format: docs/scenario-format.md."""
 
 from .check import check
 from .model import Component, Connection, Scenario, Stimulus, Value

@@ -97,7 +97,7 @@ def _ssv_file(ctx: Context, binding: etree._Element, source: str) -> tuple[etree
         return None
     problems = Problems()
     tree = xmlio.parse(path, shown, problems)
-    if tree is not None and xmlio.check_schema(tree, xmlio.ssv_schema(), shown, problems):
+    if tree is not None and xmlio.check_schema(tree, xmlio.ssv_schema(tree), shown, problems):
         root = tree.getroot()
         if root.tag == tag(NS_SSV, "ParameterSet"):
             return root, shown

@@ -56,6 +56,13 @@ def check(sc: Scenario, fmus: Mapping[str, FmuInfo] | None = None) -> list[Probl
     return problems.items
 
 
+def times(sc: Scenario) -> list[Problem]:
+    """The problems of `sc`'s times alone (the reader's, for a stop time from the command line)."""
+    problems = Problems()
+    _times(sc, lambda element, message: problems.add(str(sc.path), None, element, message))
+    return problems.items
+
+
 def _read(sc: Scenario, at: At) -> dict[str, FmuInfo | None]:
     infos: dict[str, FmuInfo | None] = {}
     for c in sc.components:

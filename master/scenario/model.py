@@ -92,6 +92,8 @@ class Scenario:
     record_interval: Fraction | None = None  # None: every macro step
     # a column per extrapolated connection: its latest coupling error (master.schedule.Plan.columns)
     record_coupling_errors: bool = False
+    # setting ("macro step", "stop time", "COMP communication step" ...) -> where its value came from
+    origins: dict[str, str] = field(default_factory=dict, compare=False)
 
     def component(self, name: str) -> Component:
         for c in self.components:

@@ -47,6 +47,8 @@ def describe(elem: etree._Element) -> str:
     """A short name for an element that a reader can find in the file: tag plus what identifies it."""
     tag = qualified(elem.tag) if isinstance(elem.tag, str) else "comment"
     local = etree.QName(elem).localname if isinstance(elem.tag, str) else ""
+    if tag.startswith("{") and elem.prefix:  # another tool's namespace: as the file writes it
+        tag = f"{elem.prefix}:{local}"
     get = elem.get
     if local == "Connection" and get("startConnector") is not None:
         start = f"{get('startElement', '')}.{get('startConnector')}".lstrip(".")

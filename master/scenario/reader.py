@@ -1,8 +1,9 @@
 """Reading a scenario (.ssd or .ssp) into a validated `Scenario`, or into the list of its problems.
 
 Passes, each reporting every problem it finds and going on where it can:
-XML syntax -> schemas (SSP 1.0 + our settings) -> components and their FMUs -> connectors ->
-connections -> settings annotation -> parameter bindings and overrides -> algebraic loops.
+XML syntax -> schemas (SSP 1.0 or 2.0 + our settings) -> components and their FMUs -> connectors ->
+connections -> settings (our annotation, else defaults.py) -> parameter bindings and overrides ->
+algebraic loops.
 
 Inputs that nothing drives are not reported: FMI gives every input a start value (fmpy refuses
 an FMU without one), which such an input keeps unless a binding or stimulus sets it.
@@ -16,7 +17,8 @@ from pathlib import Path
 
 from lxml import etree
 
-from . import archive, bindings, fmuinfo, loops, settings, transforms, xmlio
+from . import archive, bindings, defaults, fmuinfo, loops, settings, transforms, xmlio
+from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
 from .model import Component, Connection, Scenario, Transformation
@@ -46,26 +48,45 @@ CONNECTOR_TYPES = {
 }
 
 
-def load(path: str | Path, overrides: dict[str, str] | None = None) -> Scenario:
+def load(
+    path: str | Path,
+    overrides: dict[str, str] | None = None,
+    *,
+    stop_time: Fraction | None = None,
+    macro_step: Fraction | None = None,
+) -> Scenario:
     """Read and check a scenario; raise ScenarioError listing every problem if it is not runnable.
 
-    overrides: "component.variable" -> value string (the CLI's --set), applied last."""
-    scenario, problems = read(path, overrides)
+    overrides: "component.variable" -> value string (the CLI's --set), applied last; stop_time,
+    macro_step (s): the CLI's --stop-time and --macro-step, which win over the file's."""
+    scenario, problems = read(path, overrides, stop_time=stop_time, macro_step=macro_step)
     if problems or scenario is None:
         raise ScenarioError(problems)
     return scenario
 
 
-def validate(path: str | Path, overrides: dict[str, str] | None = None) -> list[Problem]:
+def validate(
+    path: str | Path,
+    overrides: dict[str, str] | None = None,
+    *,
+    stop_time: Fraction | None = None,
+    macro_step: Fraction | None = None,
+) -> list[Problem]:
     """Every problem of a scenario at once (empty: it loads).  Never raises for bad input."""
-    return read(path, overrides)[1]
+    return read(path, overrides, stop_time=stop_time, macro_step=macro_step)[1]
 
 
-def read(path: str | Path, overrides: dict[str, str] | None = None) -> tuple[Scenario | None, list[Problem]]:
+def read(
+    path: str | Path,
+    overrides: dict[str, str] | None = None,
+    *,
+    stop_time: Fraction | None = None,
+    macro_step: Fraction | None = None,
+) -> tuple[Scenario | None, list[Problem]]:
     """The scenario (None if it cannot be built) and the problems found."""
     path = Path(path)
     problems = Problems()
-    scenario = _read(path, overrides or {}, problems)
+    scenario = _read(path, overrides or {}, problems, stop_time, macro_step)
     return (scenario if not problems.items else None), problems.items
 
 
@@ -102,7 +123,13 @@ def scenario_file(path: Path, problems: Problems) -> Path | None:
     return path
 
 
-def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario | None:
+def _read(
+    path: Path,
+    overrides: dict[str, str],
+    problems: Problems,
+    stop_time: Fraction | None = None,
+    macro_step: Fraction | None = None,
+) -> Scenario | None:
     found = scenario_file(path, problems)
     if found is None:
         return None
@@ -121,9 +148,13 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         return None
     root = tree.getroot()
     if root.tag != tag(NS_SSD, "SystemStructureDescription"):
-        problems.at(shown, root, "not an SSP 1.0 ssd:SystemStructureDescription")
+        problems.at(shown, root, "not an SSP ssd:SystemStructureDescription")
         return None
-    xmlio.check_schema(tree, xmlio.ssd_schema(), shown, problems)
+    major = xmlio.ssp_major(root)
+    if major is None:
+        problems.at(shown, root, f'version "{root.get("version")}": this master reads SSP 1.0 and 2.0 files')
+        return None
+    xmlio.check_schema(tree, xmlio.ssd_schema(major), shown, problems)
     system = root.find(tag(NS_SSD, "System"))
     if system is None:
         return None  # the schema check has said so
@@ -131,8 +162,13 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
 
     _components(ctx, system)
     connections, links, transformed = _connections(ctx, system)
-    times = _experiment(ctx, root)
-    setup = settings.read(ctx, root, system, times)
+    times, origins = _experiment(ctx, root, stop_time)
+    in_file = times if stop_time is None else None  # a command-line stop time is checked below
+    annotation = settings.find(ctx, root, system)
+    if annotation is not None:
+        setup = settings.read(ctx, annotation, root, system, in_file, macro_step)
+    else:  # a file written by another tool: macro step from the command line, a hint, the FMUs
+        setup = defaults.choose(ctx, root, system, in_file, macro_step)
     params = bindings.read(ctx, system, overrides)
     if setup is not None:  # an interpolating FMU's communication step becomes its internal step,
         for name, h in setup.internal_step.items():  # unless a binding chose one
@@ -163,7 +199,7 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         )
         for key in (k for k, _ in connections)
     )
-    return Scenario(
+    scenario = Scenario(
         path=path.resolve(),
         name=root.get("name", ""),
         components=components,
@@ -177,7 +213,11 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         record=setup.record,
         record_interval=setup.record_interval,
         record_coupling_errors=setup.record_coupling_errors,
+        origins={**origins, **setup.origins},
     )
+    if stop_time is not None:  # named as the option, as `check` names a stop time set after reading
+        problems.items.extend(time_problems(scenario))
+    return scenario
 
 
 def _components(ctx: Context, system: etree._Element) -> None:
@@ -364,25 +404,33 @@ def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuin
     return c.info.variables.get(connector)  # None: reported at the ssd:Connector already
 
 
-def _experiment(ctx: Context, root: etree._Element) -> tuple[Fraction, Fraction] | None:
-    """(startTime, stopTime) of ssd:DefaultExperiment; stopTime is required, startTime defaults to 0."""
+def _experiment(
+    ctx: Context, root: etree._Element, stop_time: Fraction | None = None
+) -> tuple[tuple[Fraction, Fraction] | None, dict[str, str]]:
+    """((startTime, stopTime), where each came from): ssd:DefaultExperiment's, startTime 0 where it
+    gives none, stopTime from the command line (`stop_time`) where given, else required."""
     exp = root.find(tag(NS_SSD, "DefaultExperiment"))
-    if exp is None:
-        ctx.at(root, "no ssd:DefaultExperiment: its stopTime is required")
-        return None
+    where = exp if exp is not None else root
+    origins = {"start time": "ssd:DefaultExperiment startTime", "stop time": "ssd:DefaultExperiment stopTime"}
     times = []
     for attr, default in (("startTime", "0"), ("stopTime", None)):
-        text = exp.get(attr, default)
+        text = exp.get(attr, default) if exp is not None else default
+        if attr == "startTime" and (exp is None or exp.get(attr) is None):
+            origins["start time"] = "default (0)"
+        if attr == "stopTime" and stop_time is not None:
+            times.append(stop_time)
+            origins["stop time"] = "command line (--stop-time)"
+            continue
         if text is None:
-            ctx.at(exp, f"{attr} is required")
-            return None
+            ctx.at(where, "no stopTime: give --stop-time T (seconds) or set it on ssd:DefaultExperiment")
+            return None, origins
         try:
             times.append(parse_time(text))
         except ValueError as e:
-            ctx.at(exp, f"{attr}: {e}")
-            return None
+            ctx.at(where, f"{attr}: {e}")
+            return None, origins
     start, stop = times
     if stop <= start:
-        ctx.at(exp, f"stopTime {float(stop):g} s is not after startTime {float(start):g} s")
-        return None
-    return start, stop
+        ctx.at(where, f"stopTime {float(stop):g} s is not after startTime {float(start):g} s")
+        return None, origins
+    return (start, stop), origins

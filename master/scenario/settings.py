@@ -47,6 +47,7 @@ class Settings:
     record_interval: Fraction | None = None
     record_coupling_errors: bool = False
     stimuli: tuple[Stimulus, ...] = ()
+    origins: dict[str, str] = field(default_factory=dict)  # setting -> where its value came from
 
 
 INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
@@ -87,7 +88,8 @@ def _bool(text: str | None) -> bool | None:
 
 
 def find(ctx: Context, root: etree._Element, system: etree._Element) -> etree._Element | None:
-    """The one mm:Settings element; problems for none, several, or one in the wrong place."""
+    """The one settings annotation (None if the file has none: defaults.choose then picks the
+    settings); problems for several, or one in the wrong place."""
     found = []
     allowed = (system, root.find(tag(NS_SSD, "DefaultExperiment")))
     for ann in root.iter(tag(NS_SSC, "Annotation")):
@@ -100,36 +102,32 @@ def find(ctx: Context, root: etree._Element, system: etree._Element) -> etree._E
             ctx.at(ann, f"a second settings annotation (the first is on line {found[0].sourceline})")
         else:
             found.append(ann)
-    if not found:
-        ctx.at(
-            root,
-            f'no ssc:Annotation type="{ANNOTATION_TYPE}" on ssd:System or ssd:DefaultExperiment:'
-            " the master needs at least its macroStep (see docs/scenario-format.md)",
-        )
-        return None
-    elem = found[0].find(tag(NS_MM, "Settings"))
-    if elem is None:
-        ctx.at(found[0], f"must hold one mm:Settings element in namespace {NS_MM}")
-    return elem
+    return found[0] if found else None
 
 
 def read(
     ctx: Context,
+    annotation: etree._Element,
     root: etree._Element,
     system: etree._Element,
     times: tuple[Fraction, Fraction] | None,
+    macro_step: Fraction | None = None,
 ) -> Settings | None:
-    """The checked settings, or None if the macro step is unusable (problems added)."""
-    elem = find(ctx, root, system)
+    """The checked settings of the annotation `find` returned, or None if the macro step is
+    unusable (problems added).  macro_step: the command line's (--macro-step), which wins."""
+    elem = annotation.find(tag(NS_MM, "Settings"))
     if elem is None:
+        ctx.at(annotation, f"must hold one mm:Settings element in namespace {NS_MM}")
         return None
-    macro = _time(ctx, elem, "macroStep")
+    macro = macro_step if macro_step is not None else _time(ctx, elem, "macroStep")
     if macro is None:
         return None  # reported (absent: by the schema check)
     if macro <= 0:
         ctx.at(elem, "macroStep must be positive")
         return None
     s = Settings(macro_step=macro, coupling=elem.get("coupling", "jacobi"))
+    given = macro_step is not None
+    s.origins["macro step"] = "command line (--macro-step)" if given else "mm:Settings macroStep"
     if times is not None:
         whole = steps_problem(times[1] - times[0], macro)
         if whole:
@@ -219,6 +217,7 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         ce = seen.get(name)
         attrs = dict(ce.attrib) if ce is not None else {}
         s.step_ratio[name] = _ratio(ctx, ce, s.macro_step) if ce is not None else 1
+        s.origins[f"{name} communication step"] = "mm:Component" if ce is not None else "the macro step"
         order = _int(attrs.get("extrapolationOrder"))
         s.extrapolation_order[name] = default_order if order is None else order
         can = comp.info is not None and comp.info.can_interpolate_inputs

@@ -1,4 +1,5 @@
-"""Reading XML safely and validating it against the SSP 1.0 schemas and ours."""
+"""Reading XML safely and validating it against the SSP schemas of the file's version (1.0 or 2.0)
+and ours."""
 
 from __future__ import annotations
 
@@ -15,8 +16,22 @@ from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV, PREFIXES, Problems, qualifi
 
 log = logging.getLogger("master")
 
-SSP_SCHEMAS = Path(fmpy.__file__).parent / "ssp" / "schema"
-OUR_SCHEMA = Path(__file__).resolve().parents[1] / "schemas" / "multirate-settings.xsd"
+SCHEMAS = Path(__file__).resolve().parents[1] / "schemas"
+OUR_SCHEMA = SCHEMAS / "multirate-settings.xsd"
+# SSP major version -> its schemas.  SSP 2.0 keeps the SSP 1 namespaces and says "2.0" in the version
+# attribute of each file; its schemas (the Modelica Association's, v2.0) accept 1.0 and 2.0 there.
+SSP_SCHEMAS = {"1": Path(fmpy.__file__).parent / "ssp" / "schema", "2": SCHEMAS / "ssp2"}
+VERSIONS = re.compile(r"\s*(1)[.][0-9]+(-.*)?\s*|\s*(2)[.]0\s*")  # as the schemas' version patterns
+
+
+def ssp_major(root: etree._Element) -> str | None:
+    """Which SSP schemas check a file ("1" or "2"), by its root's version attribute (none: "1",
+    whose schema then says it is required); None for a version this master does not read."""
+    text = root.get("version")
+    if text is None:
+        return "1"
+    match = VERSIONS.fullmatch(text)
+    return None if match is None else match.group(1) or match.group(3)
 
 
 def _parser() -> etree.XMLParser:
@@ -122,21 +137,26 @@ def _combined_schema(imports: dict[str, Path]) -> etree.XMLSchema:
 
 
 @functools.cache
-def ssd_schema() -> etree.XMLSchema:
-    """SSP 1.0 SystemStructureDescription + ParameterValues (inline sets) + our settings."""
+def ssd_schema(major: str = "1") -> etree.XMLSchema:
+    """SSP SystemStructureDescription + ParameterValues (inline sets) + our settings."""
     return _combined_schema(
         {
-            NS_SSD: SSP_SCHEMAS / "SystemStructureDescription.xsd",
-            NS_SSV: SSP_SCHEMAS / "SystemStructureParameterValues.xsd",
+            NS_SSD: SSP_SCHEMAS[major] / "SystemStructureDescription.xsd",
+            NS_SSV: SSP_SCHEMAS[major] / "SystemStructureParameterValues.xsd",
             NS_MM: OUR_SCHEMA,
         }
     )
 
 
+def ssv_schema(tree: etree._ElementTree | None = None) -> etree.XMLSchema:
+    """SSP SystemStructureParameterValues (.ssv files) of the version `tree` says (else 1.0; an
+    unknown version then fails the 1.0 schema's version pattern)."""
+    return _ssv_schema((ssp_major(tree.getroot()) if tree is not None else None) or "1")
+
+
 @functools.cache
-def ssv_schema() -> etree.XMLSchema:
-    """SSP 1.0 SystemStructureParameterValues (.ssv files)."""
-    return _combined_schema({NS_SSV: SSP_SCHEMAS / "SystemStructureParameterValues.xsd"})
+def _ssv_schema(major: str) -> etree.XMLSchema:
+    return _combined_schema({NS_SSV: SSP_SCHEMAS[major] / "SystemStructureParameterValues.xsd"})
 
 
 _BRACED = re.compile(r"\{([^}]*)\}(\w+)")
@@ -202,4 +222,4 @@ def tag(ns: str, local: str) -> str:
     return f"{{{ns}}}{local}"
 
 
-__all__ = ["parse", "check_schema", "ssd_schema", "ssv_schema", "tag", "qualified"]
+__all__ = ["parse", "check_schema", "ssd_schema", "ssv_schema", "ssp_major", "tag", "qualified"]

@@ -6,6 +6,7 @@ result.rows  # one dict per case: varied values, status, message, final(...), mi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -60,6 +61,7 @@ def sweep(
     scheduler: str | None = None,
     workers: int | None = None,
     stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
     set_values: list[str] | None = None,
     record: list[str] | None = None,
     output_interval: float | str | Fraction | None = None,
@@ -78,7 +80,7 @@ def sweep(
     """
     from master import api
 
-    sc = _scene(api, scenario, stop_time, set_values, record, output_interval)
+    sc = _scene(api, scenario, stop_time, set_values, record, output_interval, macro_step)
     plan = api.plan(sc)
     columns = [c for c in plan.columns[1:] if plan.column_types.get(c) not in TEXT_TYPES]  # numbers
     ranges = bind([parse_vary(v, method) for v in vary], sc)
@@ -150,12 +152,15 @@ def sweep(
     return result
 
 
-def _scene(api, scenario, stop_time, set_values, record, output_interval) -> Scenario:
+def _scene(api, scenario, stop_time, set_values, record, output_interval, macro_step=None) -> Scenario:
     """The scenario as `master.run` would run it with these options."""
     if isinstance(scenario, Scenario):
+        if macro_step is not None:  # as master.run: the step ratios are kept
+            scenario = dataclasses.replace(scenario, macro_step=api._times(None, macro_step)["macro_step"])
         return api.apply_overrides(scenario, stop_time, record, set_values, output_interval)
     texts = dict(api._split_set(s) for s in set_values) if set_values else None  # checked by the reader
-    return api.apply_overrides(api.load_scenario(scenario, texts), stop_time, record, None, output_interval)
+    sc = api.load_scenario(scenario, texts, stop_time, macro_step)  # a file from another tool needs them
+    return api.apply_overrides(sc, stop_time, record, None, output_interval)
 
 
 def _units(recorded: dict[str, str | None], ranges, columns: list[str], metrics) -> dict[str, str | None]:
