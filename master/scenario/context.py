@@ -7,6 +7,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from . import names
 from .fmuinfo import FmuInfo, Var, lookup, no_element
 from .problems import Problems
 
@@ -68,9 +69,5 @@ class Context:
         return found
 
     def split_name(self, dotted: str) -> tuple[str, str] | None:
-        """'component.variable' -> (component, variable), matching the longest component name."""
-        best = None
-        for name in self.comps:
-            if dotted.startswith(name + ".") and (best is None or len(name) > len(best)):
-                best = name
-        return (best, dotted[len(best) + 1 :]) if best is not None else None
+        """'component.variable' -> (component, variable), components by qualified name (`names`)."""
+        return names.split(dotted, self.comps)

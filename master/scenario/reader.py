@@ -15,7 +15,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from . import archive, bindings, fmuinfo, loops, settings, xmlio
+from . import archive, bindings, fmuinfo, loops, settings, systems, xmlio
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
 from .model import Component, Connection, Scenario
@@ -126,11 +126,12 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         return None  # the schema check has said so
     ctx = Context(problems, shown, ssd.parent, inside)
 
-    _components(ctx, system)
-    connections, links = _connections(ctx, system)
+    flat = systems.flatten(ctx, system)
+    _components(ctx, flat)
+    connections, links = _connections(ctx, flat)
     times = _experiment(ctx, root)
     setup = settings.read(ctx, root, system, times)
-    params = bindings.read(ctx, system, overrides)
+    params = bindings.read(ctx, flat, overrides)
     if setup is not None:  # an interpolating FMU's communication step becomes its internal step,
         for name, h in setup.internal_step.items():  # unless a binding chose one
             params.setdefault(name, {}).setdefault(settings.INTERNAL_STEP, float(h))
@@ -167,29 +168,23 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
         coupling=setup.coupling,
         order=setup.order,
         stimuli=setup.stimuli,
-        record=setup.record,
+        record=_recorded(setup.record, flat),
         record_interval=setup.record_interval,
         record_coupling_errors=setup.record_coupling_errors,
     )
 
 
-def _components(ctx: Context, system: etree._Element) -> None:
-    """Components, their FMUs and their declared connectors."""
-    elements = system.find(tag(NS_SSD, "Elements"))
-    for elem in elements if elements is not None else ():
-        local = etree.QName(elem).localname
-        if local == "System":
-            ctx.at(elem, "nested systems are not supported: flatten the scene into one ssd:System")
-            continue
-        if local != "Component":
-            ctx.at(elem, f"ssd:{local} is not supported")
-            continue
-        name = elem.get("name")
-        if name is None:
-            continue  # schema error already
-        if name in ctx.comps:
-            ctx.at(elem, f'a second component named "{name}"')
-            continue
+def _recorded(record: tuple[tuple[str, str], ...], flat: systems.Flat) -> tuple[tuple[str, str], ...]:
+    """The record list with the outputs behind the top system's output connectors (an empty list
+    records every output, those included)."""
+    if not record:
+        return record
+    return record + tuple(dict.fromkeys((c, v) for _, c, v in flat.outputs if (c, v) not in record))
+
+
+def _components(ctx: Context, flat: systems.Flat) -> None:
+    """Components (of every system, by qualified name), their FMUs and their declared connectors."""
+    for name, elem in flat.components:
         ctx.comps[name] = comp = Comp(name, elem, _fmu(ctx, elem))
         for conn in elem.findall(f"{tag(NS_SSD, 'Connectors')}/{tag(NS_SSD, 'Connector')}"):
             _connector(ctx, comp, conn)
@@ -243,23 +238,16 @@ def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
             ctx.at(conn, f'unit mismatch: connector in "{unit}", {comp.name}.{name} in "{var.unit}"')
 
 
-Link = tuple[tuple[str, str, str, str], etree._Element]  # ((start comp, output, end comp, input), element)
+Link = systems.Link
 
 
-def _connections(ctx: Context, system: etree._Element) -> tuple[list[Link], list[Link]]:
+def _connections(ctx: Context, flat: systems.Flat) -> tuple[list[Link], list[Link]]:
     """(connections without problems, every output -> input link even with a type or unit problem:
-    the algebraic loop check needs the latter)."""
+    the algebraic loop check needs the latter).  Connections through system connectors come
+    resolved into component-to-component ones (`systems`)."""
     good: list[Link] = []
     links: list[Link] = []
-    for elem in system.findall(f"{tag(NS_SSD, 'Connections')}/{tag(NS_SSD, 'Connection')}"):
-        se, sc, ee, ec = (
-            elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
-        )
-        if sc is None or ec is None:
-            continue  # schema error already
-        if se is None or ee is None:
-            ctx.at(elem, "connections to the system's own connectors are not supported")
-            continue
+    for (se, sc, ee, ec), elem in flat.links:
         for child in elem:
             if etree.QName(child).localname not in ("ConnectionGeometry", "Annotations"):
                 ctx.at(
