@@ -61,8 +61,11 @@ def test_quoting_keeps_dotted_names_apart():
 def test_nested_components_are_named_by_their_path():
     sc = load(NESTED)
     assert [c.name for c in sc.components] == [STAGE, "outer.inner.g", "h"]
-    links = {(c.start_component, c.start_connector, c.end_component, c.end_connector) for c in sc.connections}
-    assert links == {(STAGE, "y", "outer.inner.g", "u"), ("outer.inner.g", "y", "h", "u")}
+    links = {
+        (c.start_component, c.start_connector, c.end_component, c.end_connector, c.extrapolation_order)
+        for c in sc.connections
+    }  # the settings name the resolved connection by the input it drives
+    assert links == {(STAGE, "y", "outer.inner.g", "u", 1), ("outer.inner.g", "y", "h", "u", None)}
 
 
 def test_system_level_parameters_follow_the_ssp_precedence():

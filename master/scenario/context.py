@@ -31,6 +31,8 @@ class Context:
     comps: dict[str, Comp] = field(default_factory=dict)
     # input (component, variable) -> the connection element driving it
     driven: dict[tuple[str, str], etree._Element] = field(default_factory=dict)
+    # the inputs that connections lead to, also those with problems of their own (component, input)
+    ends: set[tuple[str, str]] = field(default_factory=set)
     built: dict = field(default_factory=dict)  # project FMU name -> path or SourceError, this read
 
     def at(self, elem: etree._Element, message: str) -> None:

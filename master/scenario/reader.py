@@ -127,6 +127,7 @@ def _read(path: Path, overrides: dict[str, str], problems: Problems) -> Scenario
     ctx = Context(problems, shown, ssd.parent, inside)
 
     flat = systems.flatten(ctx, system)
+    ctx.ends = {(ee, ec) for (_, _, ee, ec), _ in flat.links}
     _components(ctx, flat)
     connections, links = _connections(ctx, flat)
     times = _experiment(ctx, root)

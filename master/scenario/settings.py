@@ -139,11 +139,7 @@ def read(
     if times is not None:
         _limits(ctx, elem, s, times)
     _order(ctx, elem, s)
-    ends = {
-        (c.get("endElement"), c.get("endConnector"))
-        for c in system.iter(tag(NS_SSD, "Connection"))  # also those with problems of their own
-    }
-    _connections(ctx, elem, s, ends)
+    _connections(ctx, elem, s, ctx.ends)
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     return s
