@@ -172,3 +172,46 @@ def test_signal_dictionaries_are_refused_in_one_line(tmp_path):
     problems = validate(p)
     assert [q.element for q in problems] == ["ssd:SignalDictionaries", 'ssd:SignalDictionaryReference "bus"']
     assert all("signal dictionaries (SSP 1.0) are not supported" in q.message for q in problems)
+
+
+def test_sweeps_vary_components_of_nested_systems():
+    from master.sweeps.case import apply_case
+    from master.sweeps.cases import bind, parse_vary
+
+    sc = load(NESTED)
+    ranges = bind([parse_vary(f"{STAGE}.K=1:2:2", "grid")], sc)
+    case = apply_case(sc, ranges, {f"{STAGE}.K": 2.0})
+    assert case.component(STAGE).parameters["K"] == 2.0
+
+
+def test_omsimulator_dcmotor_connections_resolve_through_both_systems():
+    """A real nested file (its FMUs left out: the structure alone is read): the stimuli drive the
+    components of SuT through SuT's input connectors, and the outputs of the top system name
+    component outputs inside SuT, whichever way each connection is written."""
+    from lxml import etree
+
+    from master.scenario.context import Context
+    from master.scenario.problems import NS_SSD, Problems
+    from master.scenario.systems import flatten
+
+    path = OMS / "dcmotor" / "SystemStructure.ssd"
+    problems = Problems()
+    top = etree.parse(str(path)).getroot().find(f"{{{NS_SSD}}}System")
+    flat = flatten(Context(problems, str(path), path.parent, None), top)
+    assert problems.items == []
+    assert [name for name, _ in flat.components] == ["SuT.edrive_mass", "SuT.emachine_model", "stimuli_model"]
+    assert {link for link, _ in flat.links} == {
+        ("SuT.emachine_model", "M", "SuT.edrive_mass", "M_A"),
+        ("SuT.edrive_mass", "wA", "SuT.emachine_model", "w"),
+        ("SuT.edrive_mass", "phiA", "SuT.emachine_model", "phi"),
+        ("stimuli_model", "M_load", "SuT.edrive_mass", "M_B"),
+        ("stimuli_model", "U", "SuT.emachine_model", "U"),
+    }
+    assert sorted(flat.outputs) == [
+        ("I", "SuT.emachine_model", "I"),
+        ("M_load", "stimuli_model", "M_load"),
+        ("M_mot", "SuT.emachine_model", "M"),
+        ("U", "stimuli_model", "U"),
+        ("wB", "SuT.edrive_mass", "wB"),
+    ]
+    assert flat.fed == []
