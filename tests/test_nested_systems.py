@@ -215,3 +215,25 @@ def test_omsimulator_dcmotor_connections_resolve_through_both_systems():
         ("wB", "SuT.edrive_mass", "wB"),
     ]
     assert flat.fed == []
+
+
+def test_settings_written_back_reach_components_of_nested_systems(tmp_path):
+    import dataclasses
+
+    from master.scenario.writer import write_settings
+
+    sc = load(NESTED)
+    changed = dataclasses.replace(
+        sc,
+        components=tuple(
+            dataclasses.replace(c, parameters={**c.parameters, "K": 4.0}, step_ratio=2)
+            if c.name == STAGE
+            else c
+            for c in sc.components
+        ),
+    )
+    # beside the original: its relative FMU sources stay valid
+    out = write_settings(sc, changed, tmp_path / "tuned.ssd", "test")
+    again = load(out)
+    assert again.component(STAGE).parameters["K"] == 4.0 and again.component(STAGE).step_ratio == 2
+    assert again.component("outer.inner.g").parameters == {"K": 10.0}

@@ -3,10 +3,12 @@
 Precedence, lowest first (a later value replaces an earlier one for the same variable):
 1. bindings on an ssd:Component: those with source= (.ssv files) in document order,
    then inline ssd:ParameterValues in document order;
-2. bindings on each ssd:System, the deepest systems first and the top system last: SSP 1.0
-   (ssd:ParameterBindings) gives bindings at a higher level of the hierarchy precedence over
-   those of sub-systems and components.  Names are relative to the system ("comp.var",
-   "sub.comp.var", or a connector of the system or of a sub-system: "k", "sub.k");
+2. bindings on each ssd:System, the deepest systems first and the top system last: "bindings
+   at a higher hierarchy level take precedence over lower levels, i.e. bindings at a system
+   level take precedence over bindings at a sub-system or component level" (SSP 1.0, the
+   ParameterBindings element, as its SystemStructureDescription.xsd documents it; OMSimulator
+   agrees).  Names are relative to the system, formed as that text
+   says ("comp.var", "sub.comp.var", or a connector of the system or of a sub-system: "k", "sub.k");
 3. values of system connectors (kind input or parameter) reach the component inputs and
    parameters their connections lead to (`systems`), replacing what those had: a connection
    makes the connected variable equal to its source, as OMSimulator does;
@@ -42,6 +44,7 @@ def read(ctx: Context, flat: Flat, overrides: dict[str, str]) -> dict[str, dict[
         for entry in _entries(ctx, c.name, c.elem):
             _apply(ctx, params, entry)
     connectors: dict[str, Entry | str] = {}  # system connector -> its value (a binding or --set text)
+    # the top system last: its bindings win (SSP 1.0, ParameterBindings; precedence 2 above)
     for scope in sorted(flat.scopes, key=lambda s: -s.depth):  # stable: siblings in document order
         for entry in _entries(ctx, None, scope.elem):
             _system_entry(ctx, flat, scope, params, connectors, entry)

@@ -214,3 +214,18 @@ def resolve(flat: Flat, scope: Scope, name: str) -> tuple[str, str] | str | None
         if found is not None:
             return found
     return None
+
+
+def component_element(system: etree._Element, name: str, prefix: str = "") -> etree._Element | None:
+    """The ssd:Component whose qualified name is `name`, in `system` or a system nested in it."""
+    elements = system.find(tag(NS_SSD, "Elements"))
+    for elem in elements if elements is not None else ():
+        qualified = join(prefix, elem.get("name", ""))
+        local = etree.QName(elem).localname
+        if local == "Component" and qualified == name:
+            return elem
+        if local == "System" and name.startswith(qualified + "."):
+            found = component_element(elem, name, qualified)
+            if found is not None:
+                return found
+    return None
