@@ -237,3 +237,21 @@ def test_settings_written_back_reach_components_of_nested_systems(tmp_path):
     again = load(out)
     assert again.component(STAGE).parameters["K"] == 4.0 and again.component(STAGE).step_ratio == 2
     assert again.component("outer.inner.g").parameters == {"K": 10.0}
+
+
+def test_names_with_quotes_and_commas_survive_the_results_file(tmp_path):
+    from master.recorder import read_csv
+
+    fmu_path("gain")
+    odd = 'say "hi", twice'
+    p = scene(
+        tmp_path,
+        f'<ssd:System name="top"><ssd:Elements><ssd:System name="s.1"><ssd:Elements>'
+        f"{GAIN.format(name='say &quot;hi&quot;, twice')}</ssd:Elements></ssd:System></ssd:Elements>"
+        "</ssd:System>",
+    )
+    column = f"'s.1'.{odd}.y"
+    result = api.run(p, output=tmp_path / "out.csv", set_values=[f"'s.1'.{odd}.u=1.5"])
+    assert result.columns == ["time", column]
+    back = read_csv(tmp_path / "out.csv")
+    assert back.dtype.names == ("time", column) and back[column][-1] == 3.0  # K = 2 by default
