@@ -107,13 +107,16 @@ def test_cli_quotes_dotted_names(tmp_path):
     assert r.returncode != 0 and "a name with a dot in quotes: 'a.b'.variable" in r.stderr
 
 
-def test_omsimulator_parameter_connectors_drive_component_parameters():
-    """import_export_parameters1: parameter connectors k_cref and T_cref of the top system feed
-    addP.k1 and addI.k2 over the values bound to those directly, and the undriven top input
-    Input_cref feeds addP.u1, as OMSimulator's test reports (addP.k1 30, addI.k2 20)."""
-    params = {c.name: c.parameters for c in load(PARAMETERS).components}
+@pytest.mark.parametrize("scene", ["import_export_parameters1", "import_export_parameters2"])
+def test_omsimulator_parameter_connectors_drive_component_parameters(scene):
+    """Parameter connectors k_cref and T_cref of the top system feed addP.k1 and addI.k2 over the
+    values bound to those directly, and the undriven top input Input_cref feeds addP.u1, as
+    OMSimulator's tests report (addP.k1 30, addI.k2 20); the values come from one .ssv on the system
+    (1) or from an .ssv on each level, the nested system foo's included (2)."""
+    path = OMS / scene / "with-settings.ssd"
+    params = {c.name: c.parameters for c in load(path).components}
     assert params == {"addP": {"k1": 30.0, "k2": -1.0, "u1": -20.0}, "addI": {"k2": 20.0}, "P": {}}
-    assert api.run(PARAMETERS).data[-1]["addP.y"] == 30.0 * -20.0  # k1 u1 + k2 u2 with u2 = 0
+    assert api.run(path).data[-1]["addP.y"] == 30.0 * -20.0  # k1 u1 + k2 u2 with u2 = 0
 
 
 def test_omsimulator_output_figure_with_its_input():
