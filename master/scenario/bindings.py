@@ -71,7 +71,7 @@ def _system_entry(
 ) -> None:
     """One parameter bound on a system: to a variable of a component in it, or to a system connector."""
     _, name, value_elem, shown = entry
-    found = resolve(flat, scope, name)
+    found = resolve(scope, name)
     if isinstance(found, str):
         connectors[found] = entry
     elif found is not None:

@@ -1,8 +1,9 @@
 """Reading a scenario (.ssd or .ssp) into a validated `Scenario`, or into the list of its problems.
 
 Passes, each reporting every problem it finds and going on where it can:
-XML syntax -> schemas (SSP 1.0 + our settings) -> components and their FMUs -> connectors ->
-connections -> settings annotation -> parameter bindings and overrides -> algebraic loops.
+XML syntax -> schemas (SSP 1.0 + our settings) -> nested systems flattened (`systems`) ->
+components and their FMUs -> connectors -> connections -> settings annotation -> parameter
+bindings and overrides -> algebraic loops.
 
 Inputs that nothing drives are not reported: FMI gives every input a start value (fmpy refuses
 an FMU without one), which such an input keeps unless a binding or stimulus sets it.

@@ -198,7 +198,7 @@ def _resolve(ctx: Context, flat: Flat, edges: list[tuple[Node, Node, etree._Elem
         flat.fed += [(keys, s.owner, s.connector, touching[s]) for s in sinks]
 
 
-def resolve(flat: Flat, scope: Scope, name: str) -> tuple[str, str] | str | None:
+def resolve(scope: Scope, name: str) -> tuple[str, str] | str | None:
     """What `name`, relative to system `scope` as SSP 1.0 names parameters ("k", "sub.k",
     "comp.var", "sub.comp.var"; element names as written, dots and all), names: (component,
     variable), or the qualified name of a system connector; None if nothing."""
@@ -210,7 +210,7 @@ def resolve(flat: Flat, scope: Scope, name: str) -> tuple[str, str] | str | None
         rest = name[len(element) + 1 :]
         if element in scope.components:
             return scope.components[element], rest
-        found = resolve(flat, scope.systems[element], rest)
+        found = resolve(scope.systems[element], rest)
         if found is not None:
             return found
     return None
