@@ -75,8 +75,9 @@ def test_system_level_parameters_follow_the_ssp_precedence():
     assert params["h"] == {"K": 0.5}  # the connection from "gain" replaces its own 9
 
 
-def test_nested_scene_runs_to_the_exact_products():
-    result = api.run(NESTED)
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+def test_nested_scene_runs_to_the_exact_products(backend):
+    result = api.run(NESTED, backend=backend)  # qualified names as worker and instance names
     # recorded: h.y as asked, and outer.inner.g.y behind the top system's output connector "result"
     assert result.columns == ["time", "h.y", "outer.inner.g.y"]
     last = result.data[-1]
