@@ -188,21 +188,25 @@ def test_sweeps_vary_components_of_nested_systems():
     assert case.component(STAGE).parameters["K"] == 2.0
 
 
-def test_omsimulator_dcmotor_connections_resolve_through_both_systems():
-    """A real nested file (its FMUs left out: the structure alone is read): the stimuli drive the
-    components of SuT through SuT's input connectors, and the outputs of the top system name
-    component outputs inside SuT, whichever way each connection is written."""
+def flattened(path: Path):
+    """The flattened structure of a file whose FMUs are left out, and the problems found."""
     from lxml import etree
 
     from master.scenario.context import Context
     from master.scenario.problems import NS_SSD, Problems
     from master.scenario.systems import flatten
 
-    path = OMS / "dcmotor" / "SystemStructure.ssd"
     problems = Problems()
     top = etree.parse(str(path)).getroot().find(f"{{{NS_SSD}}}System")
-    flat = flatten(Context(problems, str(path), path.parent, None), top)
-    assert problems.items == []
+    return flatten(Context(problems, str(path), path.parent, None), top), problems.items
+
+
+def test_omsimulator_dcmotor_connections_resolve_through_both_systems():
+    """A real nested file (its FMUs left out: the structure alone is read): the stimuli drive the
+    components of SuT through SuT's input connectors, and the outputs of the top system name
+    component outputs inside SuT, whichever way each connection is written."""
+    flat, problems = flattened(OMS / "dcmotor" / "SystemStructure.ssd")
+    assert problems == []
     assert [name for name, _ in flat.components] == ["SuT.edrive_mass", "SuT.emachine_model", "stimuli_model"]
     assert {link for link, _ in flat.links} == {
         ("SuT.emachine_model", "M", "SuT.edrive_mass", "M_A"),
@@ -259,3 +263,22 @@ def test_names_with_quotes_and_commas_survive_the_results_file(tmp_path):
     assert result.columns == ["time", column]
     back = read_csv(tmp_path / "out.csv")
     assert back.dtype.names == ("time", column) and back[column][-1] == 3.0  # K = 2 by default
+
+
+def test_omsimulator_composite_model_resolves_connections_written_input_to_output():
+    """acvs_compositeModel: fuel's outputs reach the inputs of valve.valve_model through valve's
+    input connectors, in connections written from the inputs; the connector kinds decide."""
+    flat, problems = flattened(OMS / "acvs_compositeModel" / "SystemStructure.ssd")
+    assert problems == []
+    names = [name for name, _ in flat.components]
+    assert names[-2:] == ["valve.interface_model", "valve.valve_model"] and len(names) == 8
+    through = {link for link, _ in flat.links if (link[0] + link[2]).count("valve.") == 1}
+    assert through == {
+        ("fuel", "valve_p1", "valve.valve_model", "pA"),
+        ("fuel", "valve_p1", "valve.valve_model", "pB"),
+        ("fuel", "valve_p2", "valve.valve_model", "pTA"),
+        ("fuel", "valve_p3", "valve.valve_model", "pTB"),
+        ("fuel", "valve_u", "valve.interface_model", "u.out.y"),
+        ("valve.interface_model", "mflowA.in.y", "fuel", "valve_mflowA"),
+        ("valve.interface_model", "mflowB.in.y", "fuel", "valve_mflowB"),
+    }
