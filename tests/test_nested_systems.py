@@ -169,7 +169,10 @@ def test_signal_dictionaries_are_refused_in_one_line(tmp_path):
     p = scene(
         tmp_path,
         '<ssd:System name="top"><ssd:Elements>'
-        '<ssd:SignalDictionaryReference name="bus" dictionary="d"/></ssd:Elements>'
+        '<ssd:SignalDictionaryReference name="bus" dictionary="d"/>'
+        f"{GAIN.format(name='g')}</ssd:Elements><ssd:Connections>"
+        '<ssd:Connection startElement="bus" startConnector="s" endElement="g" endConnector="u"/>'
+        "</ssd:Connections>"
         '<ssd:SignalDictionaries><ssd:SignalDictionary name="d" source="d.ssb"/></ssd:SignalDictionaries>'
         "</ssd:System>",
     )

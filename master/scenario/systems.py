@@ -40,6 +40,7 @@ class Scope:
     connectors: dict[str, etree._Element] = field(default_factory=dict)  # own connectors by name
     components: dict[str, str] = field(default_factory=dict)  # element name -> qualified name
     systems: dict[str, Scope] = field(default_factory=dict)  # element name -> sub-system
+    refused: set[str | None] = field(default_factory=set)  # elements reported as not supported
 
     def key(self, connector: str) -> str:
         """The qualified name of one of its connectors ("k", "sub.k")."""
@@ -100,9 +101,11 @@ def _walk(ctx: Context, flat: Flat, scope: Scope, edges: list) -> None:
         local = etree.QName(elem).localname
         if local == "SignalDictionaryReference":
             ctx.at(elem, "signal dictionaries (SSP 1.0) are not supported: connect the signals directly")
+            scope.refused.add(elem.get("name"))
             continue
         if local not in ("Component", "System"):
             ctx.at(elem, f"ssd:{local} is not supported")
+            scope.refused.add(elem.get("name"))
             continue
         name = elem.get("name")
         if name is None:
@@ -121,8 +124,8 @@ def _walk(ctx: Context, flat: Flat, scope: Scope, edges: list) -> None:
         se, sc, ee, ec = (
             elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
         )
-        if sc is None or ec is None:
-            continue  # schema error already
+        if sc is None or ec is None or {se, ee} & (scope.refused - {None}):
+            continue  # schema error, or an element reported as not supported, already
         start, end = _node(scope, se, sc), _node(scope, ee, ec)
         if start.system or end.system:
             edges.append((start, end, elem))
