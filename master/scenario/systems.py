@@ -40,7 +40,7 @@ class Scope:
     connectors: dict[str, etree._Element] = field(default_factory=dict)  # own connectors by name
     components: dict[str, str] = field(default_factory=dict)  # element name -> qualified name
     systems: dict[str, Scope] = field(default_factory=dict)  # element name -> sub-system
-    refused: set[str | None] = field(default_factory=set)  # elements reported as not supported
+    refused: set[str] = field(default_factory=set)  # elements reported as not supported
 
     def key(self, connector: str) -> str:
         """The qualified name of one of its connectors ("k", "sub.k")."""
@@ -98,18 +98,17 @@ def _walk(ctx: Context, flat: Flat, scope: Scope, edges: list) -> None:
         ctx.at(dictionaries, "signal dictionaries (SSP 1.0) are not supported: connect the signals directly")
     elements = system.find(tag(NS_SSD, "Elements"))
     for elem in elements if elements is not None else ():
-        local = etree.QName(elem).localname
+        local, name = etree.QName(elem).localname, elem.get("name")
+        if name is None:
+            continue  # schema error already
         if local == "SignalDictionaryReference":
             ctx.at(elem, "signal dictionaries (SSP 1.0) are not supported: connect the signals directly")
-            scope.refused.add(elem.get("name"))
+            scope.refused.add(name)
             continue
         if local not in ("Component", "System"):
             ctx.at(elem, f"ssd:{local} is not supported")
-            scope.refused.add(elem.get("name"))
+            scope.refused.add(name)
             continue
-        name = elem.get("name")
-        if name is None:
-            continue  # schema error already
         if name in scope.components or name in scope.systems:
             ctx.at(elem, f'a second component named "{name}"')
             continue
@@ -124,7 +123,7 @@ def _walk(ctx: Context, flat: Flat, scope: Scope, edges: list) -> None:
         se, sc, ee, ec = (
             elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
         )
-        if sc is None or ec is None or {se, ee} & (scope.refused - {None}):
+        if sc is None or ec is None or {se, ee} & scope.refused:
             continue  # schema error, or an element reported as not supported, already
         start, end = _node(scope, se, sc), _node(scope, ee, ec)
         if start.system or end.system:
