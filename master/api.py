@@ -87,6 +87,8 @@ def apply_overrides(
 ) -> Scenario:
     """A copy of `sc` with command-line style overrides ("component.variable" names);
     record_coupling_errors: record the coupling error columns (whatever the scenario says)."""
+    from master.scenario.names import split  # components of nested systems: "sub.comp.var"
+
     names = [c.name for c in sc.components]
     if record_coupling_errors:
         sc = dataclasses.replace(sc, record_coupling_errors=True)
@@ -97,8 +99,8 @@ def apply_overrides(
     if record:
         pairs = []
         for r in record:
-            comp, _, var = r.partition(".")
-            if not var or comp not in names:
+            comp, var = split(r, names) or ("", "")
+            if not var:
                 raise UsageError(f"--record {r}: expected component.variable with a component of {names}")
             pairs.append((comp, var))
         sc = dataclasses.replace(sc, record=tuple(pairs))
@@ -106,8 +108,8 @@ def apply_overrides(
         items = set_values.items() if isinstance(set_values, dict) else map(_split_set, set_values)
         comps = {c.name: c for c in sc.components}
         for key, value in items:
-            comp, _, var = key.partition(".")
-            if not var or comp not in comps:
+            comp, var = split(key, comps) or ("", "")
+            if not var:
                 raise UsageError(
                     f"--set {key}={value}: expected component.variable=value with a component of {names}"
                 )

@@ -75,7 +75,9 @@ class Recorder:
             try:
                 self.csv_path.parent.mkdir(parents=True, exist_ok=True)
                 self._csv = open(self.csv_path, "w", encoding="utf-8")
-                self._csv.write(",".join(f'"{c}"' if c != "time" else c for c in columns) + "\n")
+                # names quoted as CSV does (a quote in a name doubled): element names may hold any
+                header = ('"' + c.replace('"', '""') + '"' if c != "time" else c for c in columns)
+                self._csv.write(",".join(header) + "\n")
             except OSError as e:
                 raise ResultsError(
                     f"{self.csv_path}: cannot write the results there ({e.strerror or e})"

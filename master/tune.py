@@ -45,6 +45,7 @@ from master.evidence.bench import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER
 from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
 from master.scenario.model import Scenario
+from master.scenario.names import split
 
 MANTISSAS = (
     1,
@@ -282,6 +283,12 @@ class Pilot:
         return CostModel.cost(self.scene(c), self.model.calibrate())
 
 
+def _pair(name: str, sc: Scenario) -> tuple[str, str]:
+    """A "component.variable" column name as (component, variable); components of nested systems
+    are qualified names with dots of their own (`master.scenario.names`)."""
+    return split(name, [c.name for c in sc.components]) or tuple(name.split(".", 1))
+
+
 def check_grid(sc: Scenario, steps: list[Fraction], span: Fraction) -> Fraction:
     """The spacing (s) of the times errors are compared at: the finest grid on which the scene's
     smallest component step and every candidate macro step at least as coarse all produce outputs
@@ -383,7 +390,7 @@ def pilot_for(
     grid = check_grid(scenario, steps, span)
     names = p.variables or tuple(f"{c}.{v}" for c, v in scenario.record)
     base = dataclasses.replace(scenario, macro_step=grid, record_interval=grid, stop_time=stop,
-                               record=tuple(tuple(n.split(".", 1)) for n in names))  # fmt: skip
+                               record=tuple(_pair(n, scenario) for n in names))  # fmt: skip
     try:
         with bench.quiet():
             solved = solve(base)

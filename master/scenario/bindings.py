@@ -3,8 +3,17 @@
 Precedence, lowest first (a later value replaces an earlier one for the same variable):
 1. bindings on an ssd:Component: those with source= (.ssv files) in document order,
    then inline ssd:ParameterValues in document order;
-2. bindings on the ssd:System (names "component.variable"), in the same order;
-3. overrides ("component.variable" -> text, the CLI's --set).
+2. bindings on each ssd:System, the deepest systems first and the top system last: "bindings
+   at a higher hierarchy level take precedence over lower levels, i.e. bindings at a system
+   level take precedence over bindings at a sub-system or component level" (SSP 1.0, the
+   ParameterBindings element, as its SystemStructureDescription.xsd documents it; OMSimulator
+   agrees).  Names are relative to the system, formed as that text
+   says ("comp.var", "sub.comp.var", or a connector of the system or of a sub-system: "k", "sub.k");
+3. values of system connectors (kind input or parameter) reach the component inputs and
+   parameters their connections lead to (`systems`), replacing what those had: a connection
+   makes the connected variable equal to its source, as OMSimulator does;
+4. overrides ("component.variable" or a system connector's qualified name -> text, the CLI's
+   --set); a system connector's override takes the place of its bound value in 3.
 """
 
 from __future__ import annotations
@@ -18,6 +27,7 @@ from .context import Context
 from .fmuinfo import FmuInfo, SourceError, file_at, lookup, no_element
 from .model import Value
 from .problems import NS_SSD, NS_SSV, Problems
+from .systems import Flat, Scope, resolve
 from .values import BadValue, from_ssv, from_string, settable
 from .xmlio import tag
 
@@ -27,16 +37,52 @@ PARAMETER_SET = "application/x-ssp-parameter-set"
 Entry = tuple[str | None, str, etree._Element, str]
 
 
-def read(ctx: Context, system: etree._Element, overrides: dict[str, str]) -> dict[str, dict[str, Value]]:
+def read(ctx: Context, flat: Flat, overrides: dict[str, str]) -> dict[str, dict[str, Value]]:
     """component -> {variable: value} after every binding and override, checked."""
     params: dict[str, dict[str, Value]] = {name: {} for name in ctx.comps}
-    levels = [(c.name, c.elem) for c in ctx.comps.values()] + [(None, system)]
-    for comp, holder in levels:
-        for entry in _entries(ctx, comp, holder):
+    for c in ctx.comps.values():
+        for entry in _entries(ctx, c.name, c.elem):
             _apply(ctx, params, entry)
+    connectors: dict[str, Entry | str] = {}  # system connector -> its value (a binding or --set text)
+    # the top system last: its bindings win (SSP 1.0, ParameterBindings; precedence 2 above)
+    for scope in sorted(flat.scopes, key=lambda s: -s.depth):  # stable: siblings in document order
+        for entry in _entries(ctx, None, scope.elem):
+            _system_entry(ctx, flat, scope, params, connectors, entry)
+    connectors |= {key: text for key, text in overrides.items() if flat.connector(key) is not None}
+    for keys, comp, name, _ in flat.fed:
+        value = next((connectors[k] for k in keys if k in connectors), None)
+        if isinstance(value, str):
+            _override(ctx, params, f"{comp}.{name}", value, (comp, name))
+        elif value is not None:
+            _apply(ctx, params, (comp, name, value[2], value[3]))
     for key, text in overrides.items():
-        _override(ctx, params, key, text)
+        if key not in connectors:
+            _override(ctx, params, key, text)
     return params
+
+
+def _system_entry(
+    ctx: Context,
+    flat: Flat,
+    scope: Scope,
+    params: dict[str, dict[str, Value]],
+    connectors: dict[str, Entry | str],
+    entry: Entry,
+) -> None:
+    """One parameter bound on a system: to a variable of a component in it, or to a system connector."""
+    _, name, value_elem, shown = entry
+    found = resolve(scope, name)
+    if isinstance(found, str):
+        connectors[found] = entry
+    elif found is not None:
+        _apply(ctx, params, (*found, value_elem, shown))
+    else:
+        system = f"system {scope.name}" if scope.name else f'system "{scope.elem.get("name")}"'
+        ctx.problems.at(
+            shown,
+            value_elem.getparent(),
+            f'"{name}" names neither a connector of {system} nor a component of it and a dot',
+        )
 
 
 def _entries(ctx: Context, comp: str | None, holder: etree._Element) -> list[Entry]:
@@ -119,13 +165,10 @@ def _parameters(pset: etree._Element) -> list[tuple[str, etree._Element]]:
 def _apply(ctx: Context, params: dict[str, dict[str, Value]], entry: Entry) -> None:
     comp, name, value_elem, shown = entry
     param = value_elem.getparent()
-    if comp is None:
-        split = ctx.split_name(name)
-        if split is None:
-            ctx.problems.at(shown, param, f'"{name}" does not start with a component name and a dot')
-            return
-        comp, name = split
-    c = ctx.comps[comp]
+    c = ctx.comps.get(comp)
+    if c is None:
+        ctx.problems.at(shown, param, f'unknown component "{comp}"')
+        return
     if c.info is None:
         return
     found = lookup(c.info.variables, name)
@@ -146,11 +189,22 @@ def _apply(ctx: Context, params: dict[str, dict[str, Value]], entry: Entry) -> N
         ctx.problems.at(shown, param, f"{comp}.{name}: {err}")
 
 
-def _override(ctx: Context, params: dict[str, dict[str, Value]], key: str, text: str) -> None:
+def _override(
+    ctx: Context,
+    params: dict[str, dict[str, Value]],
+    key: str,
+    text: str,
+    split: tuple[str, str] | None = None,
+) -> None:
+    """--set key=text; `split`: the (component, variable) that a system connector's --set reaches."""
     where = ("--set", None, key)
-    split = ctx.split_name(key)
+    split = split or ctx.split_name(key)
     if split is None:
-        ctx.problems.add(*where, "expected component.variable with a component of the scenario")
+        ctx.problems.add(
+            *where,
+            "expected component.variable with a component of the scenario (in a sub-system:"
+            " sub.comp.variable; a name with a dot in quotes: 'a.b'.variable), or a system connector",
+        )
         return
     comp, name = split
     c = ctx.comps[comp]

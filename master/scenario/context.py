@@ -7,6 +7,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from . import names
 from .fmuinfo import FmuInfo, Var, lookup, no_element
 from .problems import Problems
 
@@ -30,6 +31,8 @@ class Context:
     comps: dict[str, Comp] = field(default_factory=dict)
     # input (component, variable) -> the connection element driving it
     driven: dict[tuple[str, str], etree._Element] = field(default_factory=dict)
+    # the inputs that connections lead to, also those with problems of their own (component, input)
+    ends: set[tuple[str, str]] = field(default_factory=set)
     built: dict = field(default_factory=dict)  # project FMU name -> path or SourceError, this read
 
     def at(self, elem: etree._Element, message: str) -> None:
@@ -68,9 +71,5 @@ class Context:
         return found
 
     def split_name(self, dotted: str) -> tuple[str, str] | None:
-        """'component.variable' -> (component, variable), matching the longest component name."""
-        best = None
-        for name in self.comps:
-            if dotted.startswith(name + ".") and (best is None or len(name) > len(best)):
-                best = name
-        return (best, dotted[len(best) + 1 :]) if best is not None else None
+        """'component.variable' -> (component, variable), components by qualified name (`names`)."""
+        return names.split(dotted, self.comps)

@@ -1,9 +1,9 @@
 """Reading a scenario (.ssd or .ssp) into a validated `Scenario`, or into the list of its problems.
 
 Passes, each reporting every problem it finds and going on where it can:
-XML syntax -> schemas (SSP 1.0 or 2.0 + our settings) -> components and their FMUs -> connectors ->
-connections -> settings (our annotation, else defaults.py) -> parameter bindings and overrides ->
-algebraic loops.
+XML syntax -> schemas (SSP 1.0 or 2.0 + our settings) -> nested systems flattened (`systems`) ->
+components and their FMUs -> connectors -> connections -> settings (our annotation, else
+defaults.py) -> parameter bindings and overrides -> algebraic loops.
 
 Inputs that nothing drives are not reported: FMI gives every input a start value (fmpy refuses
 an FMU without one), which such an input keeps unless a binding or stimulus sets it.
@@ -17,7 +17,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from . import archive, bindings, defaults, fmuinfo, loops, settings, transforms, xmlio
+from . import archive, bindings, defaults, fmuinfo, loops, settings, systems, transforms, xmlio
 from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import FLOATS, SourceError
@@ -160,8 +160,10 @@ def _read(
         return None  # the schema check has said so
     ctx = Context(problems, shown, ssd.parent, inside)
 
-    _components(ctx, system)
-    connections, links, transformed = _connections(ctx, system)
+    flat = systems.flatten(ctx, system)
+    ctx.ends = {(ee, ec) for (_, _, ee, ec), _ in flat.links}
+    _components(ctx, flat)
+    connections, links, transformed = _connections(ctx, flat)
     times, origins = _experiment(ctx, root, stop_time)
     in_file = times if stop_time is None else None  # a command-line stop time is checked below
     annotation = settings.find(ctx, root, system)
@@ -169,7 +171,7 @@ def _read(
         setup = settings.read(ctx, annotation, root, system, in_file, macro_step)
     else:  # a file written by another tool: macro step from the command line, a hint, the FMUs
         setup = defaults.choose(ctx, root, system, in_file, macro_step)
-    params = bindings.read(ctx, system, overrides)
+    params = bindings.read(ctx, flat, overrides)
     if setup is not None:  # an interpolating FMU's communication step becomes its internal step,
         for name, h in setup.internal_step.items():  # unless a binding chose one
             params.setdefault(name, {}).setdefault(settings.INTERNAL_STEP, float(h))
@@ -210,7 +212,7 @@ def _read(
         coupling=setup.coupling,
         order=setup.order,
         stimuli=setup.stimuli,
-        record=setup.record,
+        record=_recorded(setup.record, flat),
         record_interval=setup.record_interval,
         record_coupling_errors=setup.record_coupling_errors,
         origins={**origins, **setup.origins},
@@ -220,23 +222,17 @@ def _read(
     return scenario
 
 
-def _components(ctx: Context, system: etree._Element) -> None:
-    """Components, their FMUs and their declared connectors."""
-    elements = system.find(tag(NS_SSD, "Elements"))
-    for elem in elements if elements is not None else ():
-        local = etree.QName(elem).localname
-        if local == "System":
-            ctx.at(elem, "nested systems are not supported: flatten the scene into one ssd:System")
-            continue
-        if local != "Component":
-            ctx.at(elem, f"ssd:{local} is not supported")
-            continue
-        name = elem.get("name")
-        if name is None:
-            continue  # schema error already
-        if name in ctx.comps:
-            ctx.at(elem, f'a second component named "{name}"')
-            continue
+def _recorded(record: tuple[tuple[str, str], ...], flat: systems.Flat) -> tuple[tuple[str, str], ...]:
+    """The record list with the outputs behind the top system's output connectors (an empty list
+    records every output, those included)."""
+    if not record:
+        return record
+    return record + tuple(dict.fromkeys((c, v) for _, c, v in flat.outputs if (c, v) not in record))
+
+
+def _components(ctx: Context, flat: systems.Flat) -> None:
+    """Components (of every system, by qualified name), their FMUs and their declared connectors."""
+    for name, elem in flat.components:
         ctx.comps[name] = comp = Comp(name, elem, _fmu(ctx, elem))
         for conn in elem.findall(f"{tag(NS_SSD, 'Connectors')}/{tag(NS_SSD, 'Connector')}"):
             _connector(ctx, comp, conn)
@@ -293,31 +289,26 @@ def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
             ctx.at(conn, f'unit mismatch: connector in "{unit}", {comp.name}.{name} in "{var.unit}"')
 
 
-Link = tuple[tuple[str, str, str, str], etree._Element]  # ((start comp, output, end comp, input), element)
+Link = systems.Link
 
 
 def _connections(
-    ctx: Context, system: etree._Element
+    ctx: Context, flat: systems.Flat
 ) -> tuple[list[Link], list[Link], dict[tuple[str, str], Transformation]]:
     """(connections without problems, every output -> input link even with a type or unit problem:
-    the algebraic loop check needs the latter, the transformations of the former by input)."""
+    the algebraic loop check needs the latter, the transformations of the former by input).
+    Connections through system connectors come resolved into component-to-component ones
+    (`systems`)."""
     good: list[Link] = []
     links: list[Link] = []
     transformed: dict[tuple[str, str], Transformation] = {}  # input -> its connection's transformation
-    defined = transforms.units(ctx, system.getroottree().getroot())  # ssd:Units, for unit conversion
-    for elem in system.findall(f"{tag(NS_SSD, 'Connections')}/{tag(NS_SSD, 'Connection')}"):
-        se, sc, ee, ec = (
-            elem.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")
-        )
-        if sc is None or ec is None:
-            continue  # schema error already
-        if se is None or ee is None:
-            ctx.at(elem, "connections to the system's own connectors are not supported")
-            continue
+    defined = transforms.units(ctx, flat.top.elem.getroottree().getroot())  # ssd:Units, for conversion
+    for (se, sc, ee, ec), elem in flat.links:
         out = _end(ctx, elem, se, sc)
         inp = _end(ctx, elem, ee, ec)
         if out is None or inp is None:
             continue
+        written = (se, sc)
         (se, sc, out), (ee, ec, inp) = _oriented(ctx, elem, (se, sc, out), (ee, ec, inp))
         wrong_way = fmuinfo.direction_problems(f"{se}.{sc}", out.causality, f"{ee}.{ec}", inp.causality)
         for problem in wrong_way:
@@ -339,11 +330,7 @@ def _connections(
             unit_of = (_unit(ctx, se, sc, out), _unit(ctx, ee, ec, inp))
             version = ctx.comps[ee].info.fmi_version
             ok, transformation = transforms.read(ctx, elem, ends, out, inp, unit_of, defined, version)
-            if (
-                ok
-                and (se, sc) != (elem.get("startElement"), elem.get("startConnector"))
-                and _written_transformation(elem)
-            ):
+            if ok and (se, sc) != written and _written_transformation(elem):
                 ctx.at(elem, "a transformation maps the start connector's value to the end's: write this "
                        f"connection {se}.{sc} -> {ee}.{ec} (output to input) to use one")  # fmt: skip
                 ok = False

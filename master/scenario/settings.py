@@ -137,11 +137,9 @@ def read(
     if times is not None:
         _limits(ctx, elem, s, times)
     _order(ctx, elem, s)
-    ends = set(ctx.driven) | {  # driven inputs, those of connections written input -> output too
-        (c.get("endElement"), c.get("endConnector"))
-        for c in system.iter(tag(NS_SSD, "Connection"))  # also those with problems of their own
-    }
-    _connections(ctx, elem, s, ends)
+    # driven inputs (oriented: those of connections written input -> output too) and every end as
+    # written (also of connections with problems of their own, resolved through system connectors)
+    _connections(ctx, elem, s, set(ctx.driven) | ctx.ends)
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     return s

@@ -4,7 +4,8 @@ The copy keeps everything of the original (comments, parameter sets, connectors,
 changes only what differs between two loaded scenarios: the macro step, the coupling and its
 order, each component's step ratio, extrapolation order and input interpolation, the record
 interval and whether coupling errors are recorded, and parameter values (appended as a last
-inline parameter set of the component, which takes precedence over the earlier bindings).
+inline parameter set of the top system, names relative to it such as "comp.var" or
+"sub.comp.var": SSP gives the top system's bindings precedence over all others).
 Per-connection extrapolation orders are removed when the new scenario has none. An .ssp is
 written as a new archive with its other members copied; an .ssd written to another folder has
 its relative references rewritten to still point at the same files.
@@ -26,6 +27,7 @@ from . import fmuinfo
 from .archive import SSD_NAME
 from .model import Scenario, Value
 from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV
+from .systems import component_element
 from .values import BadValue, from_string
 from .xmlio import tag
 
@@ -113,16 +115,26 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
         _child(settings, "Record").set("interval", decimal(new.record_interval))
     if new.record_coupling_errors != old.record_coupling_errors:
         _child(settings, "Record").set("couplingErrors", "true" if new.record_coupling_errors else "false")
-    elements = system.find(tag(NS_SSD, "Elements"))
+    changes: dict[str, tuple[fmuinfo.Var, Value]] = {}
     for comp in new.components:
         before = old.component(comp.name).parameters
         variables = fmuinfo.read(comp.fmu_path).variables
         changed = {k: v for k, v in comp.parameters.items()
                    if before.get(k) != v and (k in before or not _is_start(variables, k, v))}  # fmt: skip
         if changed:
-            element = next(e for e in elements if e.get("name") == comp.name)
-            found = {k: fmuinfo.lookup(variables, k) for k in changed}
-            _append_parameters(element, {k: (found[k][0], v) for k, v in changed.items()}, title)
+            path = _path(system, component_element(system, comp.name))  # also in a nested system
+            changes |= {f"{path}.{k}": (fmuinfo.lookup(variables, k)[0], v) for k, v in changed.items()}
+    if changes:
+        _append_parameters(system, changes, title)
+
+
+def _path(system: etree._Element, element: etree._Element) -> str:
+    """The name of a component relative to `system` as SSP forms it: element names, dots between."""
+    names = []
+    while element is not system:
+        names.append(element.get("name", ""))
+        element = element.getparent().getparent()  # ssd:Elements, then its ssd:System
+    return ".".join(reversed(names))
 
 
 def _settings(system: etree._Element) -> etree._Element:

@@ -15,6 +15,7 @@ import numpy as np
 
 from master.recorder import number_columns
 from master.scenario.model import Scenario
+from master.scenario.names import split
 from master.sweeps.cases import Range
 from master.sweeps.metrics import Metric
 
@@ -37,7 +38,7 @@ def apply_case(sc: Scenario, ranges: list[Range], values: dict) -> Scenario:
     comps = {c.name: c for c in sc.components}
     stimuli = list(sc.stimuli)
     for r in ranges:
-        comp, _, var = r.name.partition(".")
+        comp, var = split(r.name, comps)  # bound: `cases.bind` checked the component
         value = check_range(r.var, values[r.name]) if r.var is not None else values[r.name]
         if r.stimulus:
             stimuli = [dataclasses.replace(s, values=(value,)) if (s.component, s.variable) == (comp, var)

@@ -21,6 +21,7 @@ import numpy as np
 from master.scenario.fmuinfo import FLOATS, NUMERIC, Var
 from master.scenario.fmuinfo import read as read_fmu
 from master.scenario.model import Scenario
+from master.scenario.names import split
 
 METHODS = ("grid", "lhs", "sobol")
 
@@ -92,7 +93,7 @@ def bind(ranges: list[Range], sc: Scenario) -> list[Range]:
     seen: set[str] = set()
     bound = []
     for r in ranges:
-        comp, _, var = r.name.partition(".")
+        comp, var = split(r.name, comps) or r.name.partition(".")[::2]  # nested: "sub.comp.var"
         if comp not in comps:
             raise SweepError(f"--vary {r.name}: no component {comp!r} (components: {', '.join(comps)})")
         if r.name in seen:
