@@ -258,3 +258,45 @@ def test_an_ssp2_mapping_file_is_checked_with_the_ssp2_schema(tmp_path):
     }
     (problem,) = validate(scene(tmp_path, ssm(tmp_path, entries, "2.1"), values))
     assert problem.file.endswith("m.ssm") and "attribute version" in problem.message
+
+
+def test_a_mapped_system_connector_value_reaches_its_components_transformed(tmp_path):
+    """A value mapped to a parameter connector of the system, with a linear transformation, sets
+    the gain K of both components connected to it; a transformation that does not fit the value
+    is one line, though the connector reaches two components."""
+    p = tmp_path / "connector.ssd"
+    value = '<ssv:Real value="3"/>'
+    p.write_text(f"""<ssd:SystemStructureDescription version="1.0" name="s" {NS}>
+<ssd:System name="top"><ssd:Connectors><ssd:Connector name="k" kind="parameter"/></ssd:Connectors>
+<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+<ssv:ParameterSet version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="gain">{value}</ssv:Parameter>
+</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues><ssd:ParameterMapping>
+<ssm:ParameterMapping version="1.0"><ssm:MappingEntry source="gain" target="k">
+<ssc:LinearTransformation factor="2" offset="0.5"/></ssm:MappingEntry></ssm:ParameterMapping>
+</ssd:ParameterMapping></ssd:ParameterBinding></ssd:ParameterBindings><ssd:Elements>
+<ssd:Component name="a" source="project:gain"><ssd:Connectors><ssd:Connector name="K" kind="parameter"/>
+</ssd:Connectors></ssd:Component>
+<ssd:Component name="b" source="project:gain"><ssd:Connectors><ssd:Connector name="K" kind="parameter"/>
+</ssd:Connectors></ssd:Component></ssd:Elements><ssd:Connections>
+<ssd:Connection startConnector="k" endElement="a" endConnector="K"/>
+<ssd:Connection startConnector="k" endElement="b" endConnector="K"/></ssd:Connections></ssd:System>
+<ssd:DefaultExperiment stopTime="1"><ssd:Annotations>
+<ssc:Annotation type="org.multirate-master.settings"><mm:Settings macroStep="0.1"/>
+</ssc:Annotation></ssd:Annotations></ssd:DefaultExperiment></ssd:SystemStructureDescription>""")
+    assert {c.name: c.parameters for c in load(p).components} == {"a": {"K": 6.5}, "b": {"K": 6.5}}
+    p.write_text(p.read_text().replace(value, '<ssv:Integer value="3"/>'))
+    (problem,) = validate(p)
+    assert problem.element == "ssc:LinearTransformation"
+    assert 'transforms Real values only: parameter "gain" is Integer' in problem.message
+
+
+def test_a_mapping_inside_an_ssp_archive(tmp_path):
+    import zipfile
+
+    folder = OMS / "LinearTransformation3"
+    archive = tmp_path / "LinearTransformation3.ssp"
+    with zipfile.ZipFile(archive, "w") as z:
+        for f in folder.rglob("*"):
+            if f.is_file() and f.name != "ORIGIN.md":
+                z.write(f, f.relative_to(folder).as_posix())
+    assert load(archive).component("Gain1").parameters == {"u": 14.0, "k": 13.0}

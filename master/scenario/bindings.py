@@ -35,7 +35,7 @@ from .xmlio import tag
 
 PARAMETER_SET = "application/x-ssp-parameter-set"
 PARAMETER_MAPPING = "application/x-ssp-parameter-mapping"
-SSV_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "Enumeration": "Enumeration"}
+SSV_TYPES = ("Real", "Integer", "Boolean", "Enumeration")  # the ssv types a transformation reads
 
 
 class Entry(NamedTuple):
@@ -298,9 +298,12 @@ def _mapped(ctx: Context, entry: Entry, var: Var, fmi_version: str) -> Value | N
     root = ctx.comps[entry.comp].elem.getroottree().getroot()
     quiet = dataclasses.replace(ctx, problems=Problems())  # the connections' reader reports bad units
     defined = transforms.units(quiet, root)
-    here = dataclasses.replace(ctx, shown=file)  # problems at the mapping entry, in its file
+    # problems at the mapping entry, in its file; once, though a system connector's value may
+    # reach several variables
+    here = dataclasses.replace(ctx, shown=file, problems=Problems())
     ends = (f'parameter "{mapping.get("source")}"', f"{entry.comp}.{entry.name}")
     ok, t = transforms.read(here, mapping, ends, source, var, (unit, var.unit), defined, fmi_version)
+    ctx.problems.items += [p for p in here.problems.items if p not in ctx.problems.items]
     if not ok:
         return None
     number = _number(source, ssv_type, text)
@@ -320,7 +323,7 @@ def _source_var(entry: Entry, mapping: etree._Element) -> Var | None:
         items = tuple((n, i) for i, n in enumerate(dict.fromkeys(names)))
     name = entry.value.getparent().get("name", "")
     unit = entry.value.get("unit")
-    return Var(name, SSV_TYPES[ssv_type], "parameter", "fixed", None, unit, None, None, None, items)
+    return Var(name, ssv_type, "parameter", "fixed", None, unit, None, None, None, items)
 
 
 def _number(source: Var, ssv_type: str, text: str) -> float:
