@@ -300,3 +300,13 @@ def test_a_mapping_inside_an_ssp_archive(tmp_path):
             if f.is_file() and f.name != "ORIGIN.md":
                 z.write(f, f.relative_to(folder).as_posix())
     assert load(archive).component("Gain1").parameters == {"u": 14.0, "k": 13.0}
+
+
+def test_an_enumeration_value_no_map_entry_names_passes_unchanged(tmp_path):
+    entry = (
+        '<ssm:MappingEntry source="method" target="solver"><ssc:EnumerationMappingTransformation>'
+        '<ssc:MapEntry source="slow" target="euler"/></ssc:EnumerationMappingTransformation>'
+        "</ssm:MappingEntry>"
+    )
+    values = '<ssv:Parameter name="method"><ssv:Enumeration value="ab3"/></ssv:Parameter>'
+    assert load(scene(tmp_path, inline(entry), values)).component("d").parameters == {"solver": 3}

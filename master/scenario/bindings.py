@@ -14,6 +14,9 @@ Precedence, lowest first (a later value replaces an earlier one for the same var
    makes the connected variable equal to its source, as OMSimulator does;
 4. overrides ("component.variable" or a system connector's qualified name -> text, the CLI's
    --set); a system connector's override takes the place of its bound value in 3.
+
+A binding's ssd:ParameterMapping (inline, or an .ssm file) renames its values first and transforms
+them (`_named`, `_mapped`); a mapped value then stands where the binding's value would.
 """
 
 from __future__ import annotations
@@ -306,6 +309,8 @@ def _mapped(ctx: Context, entry: Entry, var: Var, fmi_version: str) -> Value | N
     ctx.problems.items += [p for p in here.problems.items if p not in ctx.problems.items]
     if not ok:
         return None
+    if ssv_type == "Enumeration" and text not in dict(source.items):  # no ssc:MapEntry names it:
+        return from_ssv(var, ssv_type, text, unit)  # unchanged, as a map passes such a value
     number = _number(source, ssv_type, text)
     result = number if t is None else transforms.applied(t, number)
     return from_string(var, repr(result) if var.kind in ("Float64", "Float32") else str(int(result)))
@@ -331,10 +336,7 @@ def _number(source: Var, ssv_type: str, text: str) -> float:
     if ssv_type == "Boolean":
         return 1.0 if text.strip() in ("true", "1") else 0.0
     if ssv_type == "Enumeration":
-        found = dict(source.items).get(text)
-        if found is None:
-            raise BadValue(f'"{text}" is not a source of the mapping entry\'s ssc:MapEntry elements')
-        return float(found)
+        return float(dict(source.items)[text])
     return float(text)
 
 
