@@ -62,22 +62,32 @@ def test_omsimulator_mapped_scene_runs_from_the_command_line(tmp_path):
     assert lines[0] == 'time,"Add1.y","Gain1.y"' and lines[-1] == "1,182,182"
 
 
-def test_omsimulator_mapping_from_an_ssm_file_on_system_connectors():
+# The .ssv of both importParameterMapping scenes also holds Input_3 (50) and parameter_2 (-40), which
+# the mapping does not name: SSP says "All parameters of the parameter source which are not referenced
+# in a mapping entry will not be applied" (SSP 1.0.1 and 2.0, SSM chapter), so they bind nothing here;
+# OMSimulator applies them under their own names and prints co_sim.Input_3 50.0, parameter_2 -40.0.
+UNMAPPED = {"Input_3", "parameter_2"}
+
+
+def test_omsimulator_mapping_from_an_ssm_file_on_system_connectors(caplog):
     """importParameterMapping: one source mapped to several connectors of the system and of its
-    sub-systems; Input_3 and parameter_2, which the mapping does not name, keep their names.
-    The values OMSimulator prints (System1/2.parameter_2 print 0.0: nothing binds them)."""
+    sub-systems, as OMSimulator prints them (System1/2.parameter_2 print 0.0: nothing binds them);
+    the values the mapping does not name are not applied (above), a warning naming them."""
     values = connector_values(OMS / "importParameterMapping" / "SystemStructure.ssd")
-    expected = {"Input_1": 20.0, "Input_2": 20.0, "Input_3": 50.0, "parameter_1": -30.0, "parameter_2": -40.0}
+    expected = {"Input_1": 20.0, "Input_2": 20.0, "parameter_1": -30.0}
     for sub in ("System1", "System2"):
         expected |= {f"{sub}.Input_1": 20.0, f"{sub}.Input_2": 20.0, f"{sub}.parameter_1": -30.0}
-    assert values == expected
+    assert values == expected and not UNMAPPED & set(values)
+    assert '"Input_3", "parameter_2" not applied: the binding\'s parameter mapping does not name them' in (
+        caplog.text
+    )
 
 
 def test_omsimulator_inline_mappings_on_each_level():
     """importParameterMappingInline: an inline ssm:ParameterMapping on the top system and on each
-    sub-system, as OMSimulator prints them."""
+    sub-system, as OMSimulator prints them, but for the unmapped values of the top (above)."""
     values = connector_values(OMS / "importParameterMappingInline" / "SystemStructure.ssd")
-    expected = {"Input_1": 20.0, "Input_2": 20.0, "Input_3": 50.0, "parameter_1": -30.0, "parameter_2": -40.0}
+    expected = {"Input_1": 20.0, "Input_2": 20.0, "parameter_1": -30.0}  # not Input_3, parameter_2: above
     expected |= {f"System1.{n}": -100.0 for n in ("Input_1", "Input_2")}
     expected |= {f"System1.{n}": -50.0 for n in ("parameter_1", "parameter_2")}
     expected |= {f"System2.{n}": 70.0 for n in ("Input_1", "Input_2", "parameter_1", "parameter_2")}
@@ -176,8 +186,7 @@ def test_values_are_renamed_transformed_and_converted(tmp_path, where):
         "n_in": 7,
         "on_in": False,
         "solver": 4,  # rk4
-        "threshold": 0.75,  # not mapped: its own name
-    }
+    }  # not threshold: a mapping applies only the values it names
 
 
 @pytest.mark.parametrize(
@@ -310,3 +319,12 @@ def test_an_enumeration_value_no_map_entry_names_passes_unchanged(tmp_path):
     )
     values = '<ssv:Parameter name="method"><ssv:Enumeration value="ab3"/></ssv:Parameter>'
     assert load(scene(tmp_path, inline(entry), values)).component("d").parameters == {"solver": 3}
+
+
+def test_two_sources_mapped_to_one_target_are_refused(tmp_path):
+    """SSP: "Implementations MUST NOT map multiple parameters to the same name"."""
+    entries = '<ssm:MappingEntry source="q" target="quantum"/>'
+    entries += '<ssm:MappingEntry source="count" target="quantum"/>'
+    (problem,) = validate(scene(tmp_path, ssm(tmp_path, entries), only("q", "count")))
+    assert (Path(problem.file).name, problem.element) == ("m.ssm", "ssm:MappingEntry")
+    assert 'maps "count" to "quantum", to which "q" is mapped already' in problem.message

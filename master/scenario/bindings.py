@@ -34,7 +34,7 @@ from .model import Value
 from .problems import NS_SSC, NS_SSD, NS_SSM, NS_SSV, Problems
 from .systems import Flat, Scope, resolve
 from .values import BadValue, from_ssv, from_string, settable
-from .xmlio import tag
+from .xmlio import log, tag
 
 PARAMETER_SET = "application/x-ssp-parameter-set"
 PARAMETER_MAPPING = "application/x-ssp-parameter-mapping"
@@ -122,8 +122,8 @@ def _entries(ctx: Context, comp: str | None, holder: etree._Element) -> list[Ent
         if binding.get("sourceBase", "SSD") != "SSD":
             ctx.at(binding, 'sourceBase="component" is not supported: put the .ssv beside the .ssd')
             continue
-        mapping = _mapping(ctx, binding)
-        if mapping is None:
+        ok, mapping = _mapping(ctx, binding)
+        if not ok:
             continue
         prefix = binding.get("prefix", "")
         source = binding.get("source")
@@ -150,55 +150,82 @@ def _entries(ctx: Context, comp: str | None, holder: etree._Element) -> list[Ent
 Mapping = dict[str, list[tuple[etree._Element, str]]]  # source name -> (ssm:MappingEntry, its file)
 
 
-def _mapping(ctx: Context, binding: etree._Element) -> Mapping | None:
+def _mapping(ctx: Context, binding: etree._Element) -> tuple[bool, Mapping | None]:
     """The ssd:ParameterMapping of a binding, inline or from an .ssm file, by source name (one
-    source may have several targets); {} without one, None after reporting a problem."""
+    source may have several targets): (True, the mapping), (True, None) without one, (False, None)
+    after reporting a problem."""
     elem = binding.find(tag(NS_SSD, "ParameterMapping"))
     if elem is None:
-        return {}
+        return True, None
     if elem.get("type", PARAMETER_MAPPING) != PARAMETER_MAPPING:
         ctx.at(elem, f'type "{elem.get("type")}" is not supported (only {PARAMETER_MAPPING})')
-        return None
+        return False, None
     if elem.get("sourceBase", "SSD") != "SSD":
         ctx.at(elem, 'sourceBase="component" is not supported: put the .ssm beside the .ssd')
-        return None
+        return False, None
     source = elem.get("source")
     inline = elem.find(tag(NS_SSM, "ParameterMapping"))
     if source is not None and inline is not None:
         ctx.at(elem, "give either source= or an inline ssm:ParameterMapping, not both")
-        return None
+        return False, None
     if source is not None:
         found = _source_file(ctx, elem, source, "parameter mapping", ("ssm", NS_SSM, "ParameterMapping"))
         if found is None:
-            return None
+            return False, None
         root, shown = found
     elif inline is not None:
         root, shown = inline, ctx.shown
     else:
         ctx.at(elem, "has neither source= nor an inline ssm:ParameterMapping")
-        return None
+        return False, None
     mapping: Mapping = {}
+    sources: dict[str, str] = {}  # target -> the source mapped to it
     for entry in root.findall(tag(NS_SSM, "MappingEntry")):
-        if entry.get("source") is not None and entry.get("target") is not None:  # else: schema error
-            mapping.setdefault(entry.get("source"), []).append((entry, shown))
-    return mapping
+        source, target = entry.get("source"), entry.get("target")
+        if source is None or target is None:
+            continue  # the schema check has said so
+        if sources.setdefault(target, source) != source:  # SSP 1.0.1 and 2.0, SSM chapter
+            ctx.problems.at(shown, entry, f'maps "{source}" to "{target}", to which "{sources[target]}" '
+                            "is mapped already: implementations must not map multiple parameters to "
+                            "the same name")  # fmt: skip
+            return False, None
+        mapping.setdefault(source, []).append((entry, shown))
+    return True, mapping
 
 
-def _named(comp: str | None, prefix: str, pset: etree._Element, shown: str, mapping: Mapping) -> list[Entry]:
-    """The entries of a parameter set under the names they bind: a name the mapping maps becomes
-    the target of each of its entries (prefix= is not added to a target: the target is "the name of
-    the parameter in the system or component", ssm:MappingEntry in SSP 1.0); a name it does not map
-    keeps its own (with the prefix): "If no mapping is supplied, the parameter names of the
-    parameter source are used as is" and the names "must match the names of the FMU variables, or
-    must be mapped to [them] through a ParameterMapping element" (SSP 1.0, ssd:ParameterMapping and
-    ssd:ParameterBinding). Mapping entries whose source the set lacks bind nothing (OMSimulator's
-    .ssm templates list every target with source="")."""
+def _named(
+    comp: str | None, prefix: str, pset: etree._Element, shown: str, mapping: Mapping | None
+) -> list[Entry]:
+    """The entries of a parameter set under the names they bind. Without a mapping, each keeps its
+    name (with the prefix): "If no mapping is supplied, the parameter names of the parameter source
+    are used as is for name matching" (SSP 1.0.1 and 2.0, ssd:ParameterMapping). With one, a name the
+    mapping maps binds the target of each of its entries (one source, several targets: "CAN map
+    the same parameter to multiple names"; prefix= is not added to a target, "the name of the
+    parameter in the system or component"), and the others are dropped, a warning naming them:
+    "All parameters of the parameter source which are not referenced in a mapping entry will not
+    be applied. All parameters that are referenced in a mapping entry will only be applied using
+    the name they are mapped to" (SSP 1.0.1 and 2.0, the SSM chapter, ParameterMapping). OMSimulator
+    applies unmapped ones under their own names; the standard's rule is kept here. Mapping entries
+    whose source the set lacks bind nothing (OMSimulator's .ssm templates list every target with
+    source="")."""
+    if mapping is None:
+        return [Entry(comp, prefix + name, value, shown) for name, value in _parameters(pset)]
     found: list[Entry] = []
+    dropped: list[str] = []
     for name, value in _parameters(pset):
         if name in mapping:
             found += [Entry(comp, e.get("target"), value, shown, (e, file)) for e, file in mapping[name]]
         else:
-            found.append(Entry(comp, prefix + name, value, shown))
+            dropped.append(name)
+    if dropped:
+        names = ", ".join(f'"{n}"' for n in dropped[:5]) + (
+            f" and {len(dropped) - 5} more" if len(dropped) > 5 else ""
+        )
+        log.warning(
+            "%s:%s: %s not applied: the binding's parameter mapping does not name %s (SSP: parameters a "
+            "mapping does not reference are not applied)",
+            shown, pset.sourceline, names, "it" if len(dropped) == 1 else "them",
+        )  # fmt: skip
     return found
 
 
