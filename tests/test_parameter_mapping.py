@@ -328,3 +328,13 @@ def test_two_sources_mapped_to_one_target_are_refused(tmp_path):
     (problem,) = validate(scene(tmp_path, ssm(tmp_path, entries), only("q", "count")))
     assert (Path(problem.file).name, problem.element) == ("m.ssm", "ssm:MappingEntry")
     assert 'maps "count" to "quantum", to which "q" is mapped already' in problem.message
+
+
+def test_settings_written_to_another_folder_keep_the_mapping_file(tmp_path):
+    """A copy written elsewhere (master tune) points its .ssv, .ssm and FMU sources back at the
+    originals, so the mapped values survive."""
+    from master.scenario.writer import write_settings
+
+    sc = load(OMS / "LinearTransformation3" / "SystemStructure.ssd")
+    again = load(write_settings(sc, sc, tmp_path / "copy.ssd", "test"))
+    assert again.component("Gain1").parameters == {"u": 14.0, "k": 13.0}
