@@ -272,7 +272,8 @@ def test_an_ssp2_mapping_file_is_checked_with_the_ssp2_schema(tmp_path):
 def test_a_mapped_system_connector_value_reaches_its_components_transformed(tmp_path):
     """A value mapped to a parameter connector of the system, with a linear transformation, sets
     the gain K of both components connected to it; a transformation that does not fit the value
-    is one line, though the connector reaches two components."""
+    is one line, though the connector reaches two components; a target the system lacks is one
+    line at the mapping entry."""
     p = tmp_path / "connector.ssd"
     value = '<ssv:Real value="3"/>'
     p.write_text(f"""<ssd:SystemStructureDescription version="1.0" name="s" {NS}>
@@ -297,6 +298,10 @@ def test_a_mapped_system_connector_value_reaches_its_components_transformed(tmp_
     (problem,) = validate(p)
     assert problem.element == "ssc:LinearTransformation"
     assert 'transforms Real values only: parameter "gain" is Integer' in problem.message
+    p.write_text(p.read_text().replace('target="k"', 'target="kk"'))
+    (problem,) = validate(p)
+    assert problem.element == "ssm:MappingEntry"
+    assert '"kk" names neither a connector of system "top" nor a component of it' in problem.message
 
 
 def test_a_mapping_inside_an_ssp_archive(tmp_path):
