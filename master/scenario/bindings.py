@@ -29,7 +29,7 @@ from lxml import etree
 
 from . import transforms, xmlio
 from .context import Context
-from .fmuinfo import FmuInfo, SourceError, Var, file_at, lookup, no_element
+from .fmuinfo import FLOATS, FmuInfo, SourceError, Var, file_at, lookup, no_element
 from .model import Value
 from .problems import NS_SSC, NS_SSD, NS_SSM, NS_SSV, Problems
 from .systems import Flat, Scope, resolve
@@ -340,7 +340,11 @@ def _mapped(ctx: Context, entry: Entry, var: Var, fmi_version: str) -> Value | N
         return from_ssv(var, ssv_type, text, unit)  # unchanged, as a map passes such a value
     number = _number(source, ssv_type, text)
     result = number if t is None else transforms.applied(t, number)
-    return from_string(var, repr(result) if var.kind in ("Float64", "Float32") else str(int(result)))
+    if var.kind in FLOATS:
+        return from_string(var, repr(result))
+    if result != int(result):  # a unit conversion towards an integer variable
+        raise BadValue(f"{result!r} is not an integer ({var.name} is {var.type})")
+    return from_string(var, str(int(result)))
 
 
 def _source_var(entry: Entry, mapping: etree._Element) -> Var | None:
