@@ -10,8 +10,9 @@ from lxml import etree
 NS_SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 NS_SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 NS_SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+NS_SSM = "http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
 NS_MM = "urn:org.multirate-master:settings:1"
-PREFIXES = {NS_SSD: "ssd", NS_SSC: "ssc", NS_SSV: "ssv", NS_MM: "mm"}
+PREFIXES = {NS_SSD: "ssd", NS_SSC: "ssc", NS_SSV: "ssv", NS_SSM: "ssm", NS_MM: "mm"}
 
 
 @dataclass(frozen=True)

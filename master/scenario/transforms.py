@@ -200,3 +200,11 @@ def unit_problem(ends: tuple[str, str], out: Var, inp: Var, t: Transformation | 
         f'unit mismatch: {ends[0]} is in "{out.unit}", {ends[1]} in "{inp.unit}" (a file converts '
         "between units its ssd:Units defines with the same base units)"
     )
+
+
+def applied(t: Transformation, value: float) -> float:
+    """`value` transformed by `t`, as the kernel transforms a coupled value (a map passes a value
+    that no entry names unchanged); parameter mappings use it for the value they bind."""
+    if t.kind == "map":
+        return next((target for source, target in t.mapping if source == value), value)
+    return t.factor * value + t.offset

@@ -241,11 +241,13 @@ def _indent(elem: etree._Element, parent: etree._Element) -> None:
 
 
 def _rebase(root: etree._Element, src_dir: Path, dest_dir: Path) -> None:
-    """Relative `source` references to files (FMUs, .ssv files) made relative to the new folder;
+    """Relative `source` references to files (FMUs, .ssv and .ssm files) made relative to the new folder;
     project FMU names ("project:msd", or a bare name no file has) stay as they are."""
     if src_dir.resolve() == dest_dir.resolve():
         return
-    for elem in root.iter(tag(NS_SSD, "Component"), tag(NS_SSD, "ParameterBinding")):
+    for elem in root.iter(
+        tag(NS_SSD, "Component"), tag(NS_SSD, "ParameterBinding"), tag(NS_SSD, "ParameterMapping")
+    ):
         ref = elem.get("source")
         if ref and ":" not in ref.split("/")[0] and not os.path.isabs(ref) and (src_dir / ref).is_file():
             elem.set("source", os.path.relpath(src_dir.resolve() / ref, dest_dir.resolve()))

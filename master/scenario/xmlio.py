@@ -12,7 +12,7 @@ from pathlib import Path
 import fmpy
 from lxml import etree
 
-from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV, PREFIXES, Problems, qualified
+from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSM, NS_SSV, PREFIXES, Problems, qualified
 
 log = logging.getLogger("master")
 
@@ -74,7 +74,7 @@ SSP_PREFIXES = {
     "ssd": NS_SSD,
     "ssc": NS_SSC,
     "ssv": NS_SSV,
-    "ssm": "http://ssp-standard.org/SSP1/SystemStructureParameterMapping",
+    "ssm": NS_SSM,
     "ssb": "http://ssp-standard.org/SSP1/SystemStructureSignalDictionary",
 }
 _ROOT_TAG = re.compile(rb"<[^?!\s/>][^\s/>]*")  # the root element's start tag: <name
@@ -138,11 +138,13 @@ def _combined_schema(imports: dict[str, Path]) -> etree.XMLSchema:
 
 @functools.cache
 def ssd_schema(major: str = "1") -> etree.XMLSchema:
-    """SSP SystemStructureDescription + ParameterValues (inline sets) + our settings."""
+    """SSP SystemStructureDescription + ParameterValues and ParameterMapping (inline sets and
+    mappings) + our settings."""
     return _combined_schema(
         {
             NS_SSD: SSP_SCHEMAS[major] / "SystemStructureDescription.xsd",
             NS_SSV: SSP_SCHEMAS[major] / "SystemStructureParameterValues.xsd",
+            NS_SSM: SSP_SCHEMAS[major] / "SystemStructureParameterMapping.xsd",
             NS_MM: OUR_SCHEMA,
         }
     )
@@ -151,12 +153,20 @@ def ssd_schema(major: str = "1") -> etree.XMLSchema:
 def ssv_schema(tree: etree._ElementTree | None = None) -> etree.XMLSchema:
     """SSP SystemStructureParameterValues (.ssv files) of the version `tree` says (else 1.0; an
     unknown version then fails the 1.0 schema's version pattern)."""
-    return _ssv_schema((ssp_major(tree.getroot()) if tree is not None else None) or "1")
+    return _file_schema(NS_SSV, (ssp_major(tree.getroot()) if tree is not None else None) or "1")
+
+
+def ssm_schema(tree: etree._ElementTree) -> etree.XMLSchema:
+    """SSP SystemStructureParameterMapping (.ssm files) of the version `tree` says, as `ssv_schema`."""
+    return _file_schema(NS_SSM, ssp_major(tree.getroot()) or "1")
+
+
+FILE_SCHEMAS = {NS_SSV: "SystemStructureParameterValues.xsd", NS_SSM: "SystemStructureParameterMapping.xsd"}
 
 
 @functools.cache
-def _ssv_schema(major: str) -> etree.XMLSchema:
-    return _combined_schema({NS_SSV: SSP_SCHEMAS[major] / "SystemStructureParameterValues.xsd"})
+def _file_schema(ns: str, major: str) -> etree.XMLSchema:
+    return _combined_schema({ns: SSP_SCHEMAS[major] / FILE_SCHEMAS[ns]})
 
 
 _BRACED = re.compile(r"\{([^}]*)\}(\w+)")
@@ -222,4 +232,4 @@ def tag(ns: str, local: str) -> str:
     return f"{{{ns}}}{local}"
 
 
-__all__ = ["parse", "check_schema", "ssd_schema", "ssv_schema", "ssp_major", "tag", "qualified"]
+__all__ = ["parse", "check_schema", "ssd_schema", "ssv_schema", "ssm_schema", "ssp_major", "tag", "qualified"]
