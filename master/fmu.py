@@ -1,6 +1,6 @@
-"""One Co-Simulation FMU (FMI 2.0 or 3.0) behind a small interface, with fmpy underneath.
+"""One Co-Simulation FMU (FMI 1.0, 2.0 or 3.0) behind a small interface, with fmpy underneath.
 
-The master only ever talks to `Fmu`: it hides whether the FMU is FMI 2 or 3, prepares
+The master only ever talks to `Fmu`: it hides whether the FMU is FMI 1, 2 or 3, prepares
 value-reference vectors once (`RealPort`), and turns every failing call into an `FmuError`
 that names the instance, the FMI function and the FMU's last log message.
 Times are in seconds.
@@ -31,6 +31,18 @@ OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a 
 NO_STATE_RESTORED = ctypes.c_int(1)  # doStep's noSetFMUStatePriorToCurrentPoint
 # FMI function behind each raw call, for error messages
 RAW_NAMES = {
+    "1": {  # FMI 1.0 Co-Simulation: exported as <modelIdentifier>_<name> (Fmu.function_name)
+        "get_real": "fmiGetReal",
+        "set_real": "fmiSetReal",
+        "do_step": "fmiDoStep",
+        "set_input_derivatives": "fmiSetRealInputDerivatives",
+        "get_integer": "fmiGetInteger",
+        "get_boolean": "fmiGetBoolean",
+        "set_integer": "fmiSetInteger",
+        "set_boolean": "fmiSetBoolean",
+        "get_string": "fmiGetString",
+        "set_string": "fmiSetString",
+    },
     "2": {
         "get_real": "fmi2GetReal",
         "set_real": "fmi2SetReal",
@@ -209,12 +221,14 @@ def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tu
 
 def unsupported(md: ModelDescription, path: Path) -> str | None:
     """Why the master cannot run the FMU at `path` (description `md`); None if it can. The one
-    rule that `validate` and `run` share: FMI 2.0 or 3.x, a Co-Simulation interface, a binary for
-    this platform."""
+    rule that `validate` and `run` share: FMI 1.0, 2.0 or 3.x, a Co-Simulation interface, a binary
+    for this platform."""
     from fmpy import platform, platform_tuple, supported_platforms
 
-    if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
-        return f"FMI {md.fmiVersion} is not supported: the master runs FMI 2.0 and 3.x co-simulation FMUs"
+    if md.fmiVersion not in ("1.0", "2.0") and not md.fmiVersion.startswith("3."):
+        return (
+            f"FMI {md.fmiVersion} is not supported: the master runs FMI 1.0, 2.0 and 3.x co-simulation FMUs"
+        )
     if md.coSimulation is None:
         return f"model '{md.modelName}' has no co-simulation interface"
     has = supported_platforms(str(path))
@@ -259,7 +273,10 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
 
 
 def feedthrough_outputs(md: ModelDescription) -> set[str]:
-    """Outputs that may depend directly on inputs (no dependency list: assume they do)."""
+    """Outputs that may depend directly on inputs (no dependency list: assume they do; FMI 1.0
+    descriptions as fmpy reads them have none)."""
+    if md.fmiVersion == "1.0":
+        return {v.name for v in md.modelVariables if v.causality == "output"}
     out = set()
     for u in md.outputs:
         deps = u.dependencies
@@ -303,14 +320,16 @@ def _needed(names: list[str]) -> list[str]:
     return [n for n in names if n.startswith(ours) or not n.startswith(skip)]
 
 
-# FMI 2 log messages reach the instance through its componentEnvironment: one logger serves all,
-# which fmpy's message-formatting proxy (one per process) needs
+# FMI 2 log messages reach the instance through its componentEnvironment, FMI 1 ones (whose logger
+# has the same C signature) through the instance pointer or, while it is being instantiated, its
+# name: one logger serves all, which fmpy's message-formatting proxy (one per process) needs
 _LOGGING: dict[int, Fmu] = {}
+_NAMED: dict[bytes, Fmu] = {}  # FMI 1 instances by name
 _LOGGER = None
 
 
 def _fmi2_log(env, instance, status, category, message) -> None:
-    fmu = _LOGGING.get(env or 0)
+    fmu = _LOGGING.get(env or 0) or _NAMED.get(instance or b"")
     if fmu is not None:
         fmu.last_log = message.decode("utf-8", "replace") if message else ""
         return
@@ -385,7 +404,8 @@ class Fmu:
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
-        self.fmi3 = self.md.fmiVersion.startswith("3.")
+        self.fmi = int(self.md.fmiVersion[0])  # 1, 2 or 3
+        self.fmi3 = self.fmi == 3
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
@@ -416,6 +436,8 @@ class Fmu:
 
                 self.slave = FMU3Slave(**kw)
                 self.slave.instantiate(logMessage=self._log3)
+            elif self.fmi == 1:
+                self._load1(kw)
             else:
                 from fmpy import calloc, free
                 from fmpy.fmi2 import (
@@ -446,6 +468,41 @@ class Fmu:
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
 
+    def _load1(self, kw: dict) -> None:
+        """Instantiate an FMI 1.0 Co-Simulation slave, its log messages to `last_log`."""
+        from fmpy import calloc, free
+        from fmpy.fmi1 import (
+            FMU1Slave,
+            fmi1CallbackAllocateMemoryTYPE,
+            fmi1CallbackFreeMemoryTYPE,
+            fmi1CallbackFunctions,
+        )
+
+        self.slave = FMU1Slave(**kw)
+        cb = fmi1CallbackFunctions()
+        cb.logger = _fmi2_logger()  # FMI 1's logger type is FMI 2's (same C signature)
+        cb.allocateMemory = fmi1CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi1CallbackFreeMemoryTYPE(free)
+        cb.stepFinished = None
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(ctypes.byref(cb))
+        except (ImportError, OSError, AttributeError):
+            pass
+        self._callbacks = cb
+        _NAMED[self.name.encode("utf-8")] = self
+        self.slave.instantiate(functions=cb)
+        if not self.slave.component:
+            raise FmuError(self.describe("fmiInstantiateSlave failed"))
+        _LOGGING[self.slave.component] = self
+
+    def function_name(self, name: str | None) -> str | None:
+        """The exported name of FMI function `name`: FMI 1.0 prefixes the model identifier."""
+        if name is None or self.fmi != 1:
+            return name
+        return f"{self.md.coSimulation.modelIdentifier}_{name}"
+
     def _log3(self, env, status, category, message) -> None:
         self.last_log = message.decode("utf-8", "replace") if message else ""
 
@@ -472,6 +529,19 @@ class Fmu:
             f.argtypes = argtypes
             return f
 
+        if self.fmi == 1:
+            self.raw_get_real = fn(self.function_name("fmiGetReal"))
+            self.raw_set_real = fn(self.function_name("fmiSetReal"))
+            step1 = fn(
+                self.function_name("fmiDoStep"),
+                [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_char],
+            )
+
+            def do_step1(handle, t: ctypes.c_double, h: ctypes.c_double, _no_set_prior: ctypes.c_int) -> int:
+                return step1(handle, t, h, b"\x01")  # newStep: the last step is accepted
+
+            self.raw_do_step = do_step1
+            return
         if not self.fmi3:
             self.raw_get_real = fn("fmi2GetReal")
             self.raw_set_real = fn("fmi2SetReal")
@@ -504,7 +574,7 @@ class Fmu:
 
     def call_error(self, call: str, status: int) -> FmuError:
         """The FmuError for raw call `call` ("get_real", "set_real", "do_step", ...) returning `status`."""
-        name = RAW_NAMES["3" if self.fmi3 else "2"][call]
+        name = self.function_name(RAW_NAMES[str(self.fmi)][call])
         return FmuError(self.describe(str(FMICallException(function=name, status=status))))
 
     def real_port(self, names: list[str]) -> RealPort:
@@ -613,9 +683,14 @@ class Fmu:
 
     # -- life cycle --------------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float) -> None:
-        """Enter initialisation mode for the experiment [start, stop] (s)."""
+        """Enter initialisation mode for the experiment [start, stop] (s). FMI 1.0 has no such mode:
+        its slave is initialised here (fmiInitializeSlave, with the parameters and start values set
+        so far), after which inputs may be set and outputs read at the start time as FMI 2 does in
+        initialisation mode."""
         try:
-            if self.fmi3:
+            if self.fmi == 1:
+                self._initialize1(start, stop)
+            elif self.fmi3:
                 self.slave.enterInitializationMode(startTime=start, stopTime=stop)
             else:
                 self.slave.setupExperiment(startTime=start, stopTime=stop)
@@ -623,8 +698,18 @@ class Fmu:
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
+    def _initialize1(self, start: float, stop: float) -> None:
+        f = self.slave.dll[self.function_name("fmiInitializeSlave")]  # fmpy's own has no status type
+        f.restype = ctypes.c_int
+        f.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_char, ctypes.c_double]
+        status = f(self.slave.component, start, b"\x01", stop)
+        if status > OK_STATUS:
+            raise FMICallException(function=self.function_name("fmiInitializeSlave"), status=status)
+
     def exit_initialization(self) -> None:
-        """Leave initialisation mode; the FMU is then ready to step."""
+        """Leave initialisation mode; the FMU is then ready to step (FMI 1.0: it already is)."""
+        if self.fmi == 1:
+            return
         try:
             self.slave.exitInitializationMode()
         except FMICallException as e:
@@ -632,6 +717,8 @@ class Fmu:
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""
+        if self.fmi == 1:
+            raise FmuError(self.describe("FMI 1.0 cannot save the FMU state"))
         try:
             return self.slave.getFMUState() if self.fmi3 else self.slave.getFMUstate()
         except FMICallException as e:
@@ -675,5 +762,10 @@ class Fmu:
                 except Exception:
                     pass
         _LOGGING.pop(self._log_key, None)
+        if self.fmi == 1:
+            for key in [k for k, f in _LOGGING.items() if f is self]:
+                del _LOGGING[key]
+            if _NAMED.get(self.name.encode("utf-8")) is self:
+                del _NAMED[self.name.encode("utf-8")]
         if self._own_dir and self.dir.exists():
             shutil.rmtree(self.dir, ignore_errors=True)

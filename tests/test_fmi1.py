@@ -1,0 +1,151 @@
+"""FMI 1.0 Co-Simulation FMUs: ecos's and libcosim's identity FMU (ViProMa's, the same file in both
+repositories: tests/ssp/Ecos-platform-ecos/identity/ORIGIN.md), whose every output equals its input,
+run in every backend against exact values; libcosim's linear transformation scene with its own
+FMI 1.0 FMU; ecos's DP controller (FMI 1.0 parameters)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from master import api
+from master.fmu import Fmu, parse, read_description, unsupported, variables_of
+from master.scenario.fmuinfo import read as read_info
+from tests.helpers import run_everywhere, ssd
+
+SSP = Path(__file__).parent / "ssp"
+IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
+IDENTITY_FMU = IDENTITY / "identity.fmu"
+LIBCOSIM = SSP / "open-simulation-platform-libcosim" / "linear_transformation"
+DP_CONTROLLER = SSP / "Ecos-platform-ecos" / "dp_ship" / "models" / "DPController.fmu"
+
+
+def test_validate_and_run_agree_that_fmi1_co_simulation_runs():
+    md = parse(IDENTITY_FMU)
+    assert md.fmiVersion == "1.0"
+    assert unsupported(md, IDENTITY_FMU) is None  # the one rule of validate and run
+    assert read_info(IDENTITY_FMU).unsupported is None
+    assert read_description(IDENTITY_FMU) is md
+    assert api.validate(IDENTITY / "identity.ssd") == []
+
+
+def test_the_identity_scene_gives_its_input_exactly_in_every_backend():
+    """realIn follows the table 2 t; realOut equals it at every communication point (FMI 1.0 has no
+    dependency information: the output is read after the step-end input is set)."""
+    d = run_everywhere(api.load_scenario(IDENTITY / "identity.ssd"))
+    t = d["time"]
+    assert len(t) == 11
+    assert np.array_equal(d["id.realOut"], 2 * t)
+
+
+def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
+    """a -> b on all four types: Real, Integer, Boolean (FMI 1 Booleans are one byte), String; a's
+    inputs from stimuli and a binding. b's outputs are a's inputs, exactly."""
+    types = ("real", "integer", "boolean", "string")
+    settings = (
+        "<mm:Record>" + "".join(f'<mm:Variable component="b" name="{x}Out"/>' for x in types) + "</mm:Record>"
+        '<mm:Stimuli><mm:Table component="a" variable="realIn"><mm:Point time="0" value="1"/>'
+        '<mm:Point time="1" value="3"/></mm:Table>'
+        '<mm:Step component="a" variable="integerIn"><mm:Point time="0.45" value="-7"/></mm:Step>'
+        '<mm:Step component="a" variable="booleanIn"><mm:Point time="0.25" value="1"/>'
+        '<mm:Point time="0.65" value="0"/></mm:Step></mm:Stimuli>'
+    )
+    path = ssd(
+        tmp_path / "chain.ssd",
+        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        [("a", f"{x}Out", "b", f"{x}In") for x in types],
+        settings,
+    )
+    sc = api.load_scenario(path, {"a.stringIn": "legacy"})
+    d = run_everywhere(sc)
+    t = d["time"]
+    # b holds a's output of each communication point (order 0): copies, exact
+    assert np.array_equal(d["b.realOut"], 1 + 2 * t)
+    assert np.array_equal(d["b.integerOut"], np.where(t >= 0.45, -7, 0))
+    assert np.array_equal(d["b.booleanOut"], (t >= 0.25) & (t < 0.65))
+    assert set(d["b.stringOut"]) == {"legacy"}
+
+
+def test_libcosim_linear_transformation_scene_with_its_fmi1_fmu(tmp_path):
+    """libcosim's SystemStructure.ssd, byte for byte, beside its FMU as libcosim lays them out
+    (../../fmi1/identity.fmu), with only this project's settings and a stop time added: identity2's
+    input is 1.3 x + 50 of identity1's output, which is its input as the two .ssv files bind it (4)."""
+    original = (LIBCOSIM / "SystemStructure.ssd").read_text()
+    scene = tmp_path / "ssp" / "linear_transformation"
+    scene.mkdir(parents=True)
+    for ssv in ("initial_values.ssv", "initial_values2.ssv"):
+        shutil.copy(LIBCOSIM / ssv, scene / ssv)
+    (tmp_path / "fmi1").mkdir()
+    shutil.copy(IDENTITY_FMU, tmp_path / "fmi1" / "identity.fmu")
+    settings = (
+        '<ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">'
+        '<mm:Settings macroStep="0.001"><mm:Record><mm:Variable component="identity1" name="realOut"/>'
+        '<mm:Variable component="identity2" name="realOut"/>'
+        "</mm:Record></mm:Settings></ssc:Annotation></ssd:Annotations>\n    </ssd:System>"
+    )
+    text = original.replace("</ssd:System>", settings).replace(
+        "</ssd:SystemStructureDescription>",
+        '<ssd:DefaultExperiment startTime="0" stopTime="0.01"/>\n</ssd:SystemStructureDescription>',
+    )
+    text = text.replace('xmlns:ssc="', 'xmlns:mm="urn:org.multirate-master:settings:1"\n  xmlns:ssc="', 1)
+    (scene / "SystemStructure.ssd").write_text(text)
+    d = run_everywhere(api.load_scenario(scene / "SystemStructure.ssd"))
+    assert np.all(d["identity1.realOut"] == 4.0)
+    assert np.all(d["identity2.realOut"] == 1.3 * 4.0 + 50)
+
+
+def test_fmi1_parameters_are_set_before_the_slave_is_initialised(tmp_path):
+    """ecos's DP controller: FMI 1.0 variability="parameter" reads as a parameter that bindings
+    set (the FMU reads it back), causality="internal" as local."""
+    variables = variables_of(read_description(DP_CONTROLLER))
+    assert variables["Kpx"].causality == "parameter"
+    assert variables["Kpx"].start == "20000"
+    assert variables["iex0"].causality == "parameter"
+    assert {v.causality for v in variables.values()} <= {"parameter", "input", "output", "local"}
+    fmu = Fmu(DP_CONTROLLER, "dp")
+    try:
+        fmu.set_values({"Kpx": 12345.0})
+        fmu.enter_initialization(0.0, 1.0)
+        fmu.exit_initialization()
+        assert fmu.slave.getReal([variables["Kpx"].vr]) == [12345.0]
+        fmu.do_step(0.0, 0.1)
+    finally:
+        fmu.close()
+
+
+def test_a_failing_fmi1_call_names_the_exported_function():
+    fmu = Fmu(IDENTITY_FMU, "id")
+    try:
+        assert "identity_fmiDoStep" in str(fmu.call_error("do_step", 3))
+        with pytest.raises(Exception, match="FMI 1.0 cannot save the FMU state"):
+            fmu.get_state()
+    finally:
+        fmu.close()
+
+
+def test_the_plan_repeats_no_start_up_step_of_an_fmu_that_cannot_save_its_state(tmp_path):
+    path = ssd(
+        tmp_path / "pair.ssd",
+        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        [("a", "realOut", "b", "realIn")],
+    )
+    p = api.plan(api.load_scenario(path))
+    assert p.startup_sweeps == 0
+
+
+def test_master_info_and_run_from_the_cli(tmp_path):
+    cli = [sys.executable, "-m", "master"]
+    info = subprocess.run([*cli, "info", str(IDENTITY_FMU)], capture_output=True, text=True, check=True)
+    assert "FMI 1.0" in info.stdout
+    out = tmp_path / "id.csv"
+    run = subprocess.run(
+        [*cli, "run", str(IDENTITY / "identity.ssd"), "-o", str(out)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert np.array_equal(rows[:, 1], 2 * rows[:, 0])
