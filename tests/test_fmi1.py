@@ -71,32 +71,71 @@ def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
     assert set(d["b.stringOut"]) == {"legacy"}
 
 
-def test_libcosim_linear_transformation_scene_with_its_fmi1_fmu(tmp_path):
-    """libcosim's SystemStructure.ssd, byte for byte, beside its FMU as libcosim lays them out
-    (../../fmi1/identity.fmu), with only this project's settings and a stop time added: identity2's
-    input is 1.3 x + 50 of identity1's output, which is its input as the two .ssv files bind it (4)."""
-    original = (LIBCOSIM / "SystemStructure.ssd").read_text()
+def _libcosim_layout(tmp_path: Path) -> Path:
+    """libcosim's scene folder as libcosim lays it out, its FMU at ../../fmi1/identity.fmu (the
+    same file as ecos's), the original SystemStructure.ssd byte for byte; beside it
+    with-settings.ssd, the original with only this project's settings and a stop time added."""
     scene = tmp_path / "ssp" / "linear_transformation"
     scene.mkdir(parents=True)
-    for ssv in ("initial_values.ssv", "initial_values2.ssv"):
-        shutil.copy(LIBCOSIM / ssv, scene / ssv)
+    for name in ("SystemStructure.ssd", "initial_values.ssv", "initial_values2.ssv"):
+        shutil.copy(LIBCOSIM / name, scene / name)
     (tmp_path / "fmi1").mkdir()
     shutil.copy(IDENTITY_FMU, tmp_path / "fmi1" / "identity.fmu")
+    record = "".join(f'<mm:Variable component="identity{i}" name="realOut"/>' for i in (1, 2))
     settings = (
         '<ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">'
-        '<mm:Settings macroStep="0.001"><mm:Record><mm:Variable component="identity1" name="realOut"/>'
-        '<mm:Variable component="identity2" name="realOut"/>'
-        "</mm:Record></mm:Settings></ssc:Annotation></ssd:Annotations>\n    </ssd:System>"
+        f'<mm:Settings macroStep="0.001"><mm:Record>{record}</mm:Record></mm:Settings>'
+        "</ssc:Annotation></ssd:Annotations>\n    </ssd:System>"
     )
-    text = original.replace("</ssd:System>", settings).replace(
+    text = (scene / "SystemStructure.ssd").read_text().replace("</ssd:System>", settings)
+    text = text.replace(
         "</ssd:SystemStructureDescription>",
         '<ssd:DefaultExperiment startTime="0" stopTime="0.01"/>\n</ssd:SystemStructureDescription>',
     )
     text = text.replace('xmlns:ssc="', 'xmlns:mm="urn:org.multirate-master:settings:1"\n  xmlns:ssc="', 1)
-    (scene / "SystemStructure.ssd").write_text(text)
-    d = run_everywhere(api.load_scenario(scene / "SystemStructure.ssd"))
+    (scene / "with-settings.ssd").write_text(text)
+    return scene
+
+
+def test_libcosim_linear_transformation_scene_with_its_fmi1_fmu(tmp_path):
+    """identity2's input is 1.3 x + 50 of identity1's output, which is its input as the two .ssv
+    files bind it, in order (4)."""
+    scene = _libcosim_layout(tmp_path)
+    d = run_everywhere(api.load_scenario(scene / "with-settings.ssd"))
     assert np.all(d["identity1.realOut"] == 4.0)
     assert np.all(d["identity2.realOut"] == 1.3 * 4.0 + 50)
+
+
+def test_libcosim_runs_its_original_scene_with_the_same_values(tmp_path):
+    """libcosim (libcosimpy) runs the original SystemStructure.ssd with its FMI 1.0 FMU; it reads
+    the two bindings as alternative parameter sets and uses the first (identity1.realIn = 2),
+    SSP applies both in order: this project's run is given libcosim's input to compare the rest."""
+    pytest.importorskip("libcosimpy", reason="the peers extra: pip install libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    scene = _libcosim_layout(tmp_path)
+    (scene / "with-settings.ssd").rename(tmp_path / "with-settings.ssd")  # libcosim reads the folder
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(scene), step_size=10**6)  # 1 ms in ns
+    observer = CosimObserver.create_last_value()
+    ex.add_observer(observer)
+    assert ex.step(10)
+    peer = {}
+    for name in ("identity1", "identity2"):
+        idx = ex.slave_index_from_instance_name(name)
+        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+        peer.update(
+            {f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in ("realIn", "realOut")}
+        )
+    del ex
+    assert peer["identity1.realOut"] == 2.0 and peer["identity2.realOut"] == 1.3 * 2.0 + 50.0
+    (tmp_path / "with-settings.ssd").rename(scene / "with-settings.ssd")
+    sc = api.load_scenario(scene / "with-settings.ssd", {"identity1.realIn": "2"})
+    ours = api.run(sc, backend="serial").data
+    assert ours["identity1.realOut"][-1] == peer["identity1.realOut"]
+    assert ours["identity2.realOut"][-1] == peer["identity2.realOut"]
 
 
 def test_fmi1_parameters_are_set_before_the_slave_is_initialised(tmp_path):
