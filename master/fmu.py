@@ -202,6 +202,38 @@ def tolerated(problem: str, md: ModelDescription) -> bool:
 
 @functools.lru_cache(maxsize=64)
 def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tuple[str, ...]]:
+    md, found = _checked(path)
+    if md.fmiVersion == "1.0" and md.coSimulation is not None:
+        _fmi1_capabilities(path, md)
+    return md, found
+
+
+# FMI 1.0 Co-Simulation capabilities that fmpy does not read -> how to read each
+FMI1_CAPABILITIES = {
+    "canHandleVariableCommunicationStepSize": lambda x: x == "true",
+    "canInterpolateInputs": lambda x: x == "true",
+    "maxOutputDerivativeOrder": int,
+    "canBeInstantiatedOnlyOncePerProcess": lambda x: x == "true",
+}
+
+
+def _fmi1_capabilities(path: Path, md: ModelDescription) -> None:
+    """Set the FMI 1.0 Capabilities attributes on fmpy's CoSimulation (which leaves them at their
+    defaults); an FMU of CoSimulation_Tool wraps a tool, FMI 2's needsExecutionTool."""
+    from lxml import etree
+
+    with zipfile.ZipFile(path) as zf:
+        root = etree.fromstring(zf.read("modelDescription.xml"))
+    for kind in root.findall("Implementation/*"):
+        if kind.tag == "CoSimulation_Tool":
+            md.coSimulation.needsExecutionTool = True
+        caps = kind.find("Capabilities")
+        for name, read in FMI1_CAPABILITIES.items():
+            if caps is not None and caps.get(name) is not None:
+                setattr(md.coSimulation, name, read(caps.get(name)))
+
+
+def _checked(path: Path) -> tuple[ModelDescription, tuple[str, ...]]:
     try:
         return read_model_description(str(path), validate=True), ()
     except ValidationError as strict:

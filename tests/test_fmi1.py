@@ -8,6 +8,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -188,3 +189,26 @@ def test_master_info_and_run_from_the_cli(tmp_path):
     assert run.returncode == 0, run.stderr
     rows = np.loadtxt(out, delimiter=",", skiprows=1)
     assert np.array_equal(rows[:, 1], 2 * rows[:, 0])
+
+
+def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
+    """fmpy leaves FMI 1.0 Capabilities at their defaults: the master reads them, so an FMU that can
+    be instantiated only once per process gets a worker per instance, as an FMI 2 one does."""
+    assert parse(IDENTITY_FMU).coSimulation.canHandleVariableCommunicationStepSize is True
+    once = tmp_path / "identity.fmu"
+    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(once, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(
+                    b'canBeInstantiatedOnlyOncePerProcess="false"',
+                    b'canBeInstantiatedOnlyOncePerProcess="true"',
+                )
+            dst.writestr(item, data)
+    assert parse(once).coSimulation.canBeInstantiatedOnlyOncePerProcess is True
+    path = ssd(tmp_path / "pair.ssd", {"a": str(once), "b": str(once)}, [("a", "realOut", "b", "realIn")])
+    sc = api.load_scenario(path)
+    assert api.plan(sc).exclusive == (("a", "b"),)
+    with pytest.raises(api.UsageError, match="can be instantiated only once per process"):
+        api.run(sc, backend="in-process")
+    assert len(api.run(sc, backend="serial").data) == 11
