@@ -203,8 +203,8 @@ def tolerated(problem: str, md: ModelDescription) -> bool:
 @functools.lru_cache(maxsize=64)
 def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tuple[str, ...]]:
     md, found = _checked(path)
-    if md.fmiVersion == "1.0" and md.coSimulation is not None:
-        _fmi1_capabilities(path, md)
+    if md.fmiVersion == "1.0":
+        _fmi1_terms(path, md)
     return md, found
 
 
@@ -217,10 +217,19 @@ FMI1_CAPABILITIES = {
 }
 
 
-def _fmi1_capabilities(path: Path, md: ModelDescription) -> None:
-    """Set the FMI 1.0 Capabilities attributes on fmpy's CoSimulation (which leaves them at their
-    defaults); an FMU of CoSimulation_Tool wraps a tool, FMI 2's needsExecutionTool."""
+def _fmi1_terms(path: Path, md: ModelDescription) -> None:
+    """An FMI 1.0 description in FMI 2's terms where fmpy leaves FMI 1's (it already reads
+    causality "internal" as local and variability "parameter" as a parameter): causality "none"
+    (no influence on the model) is local too; the Capabilities attributes, which fmpy leaves at
+    their defaults, are set on its CoSimulation; an FMU of CoSimulation_Tool wraps a tool, FMI 2's
+    needsExecutionTool."""
     from lxml import etree
+
+    for v in md.modelVariables:
+        if v.causality == "none":
+            v.causality = "local"
+    if md.coSimulation is None:
+        return
 
     with zipfile.ZipFile(path) as zf:
         root = etree.fromstring(zf.read("modelDescription.xml"))

@@ -193,7 +193,8 @@ def test_master_info_and_run_from_the_cli(tmp_path):
 
 def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
     """fmpy leaves FMI 1.0 Capabilities at their defaults: the master reads them, so an FMU that can
-    be instantiated only once per process gets a worker per instance, as an FMI 2 one does."""
+    be instantiated only once per process gets a worker per instance, as an FMI 2 one does. FMI 1
+    causality "none" reads as local."""
     assert parse(IDENTITY_FMU).coSimulation.canHandleVariableCommunicationStepSize is True
     once = tmp_path / "identity.fmu"
     with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(once, "w") as dst:
@@ -203,9 +204,13 @@ def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
                 data = data.replace(
                     b'canBeInstantiatedOnlyOncePerProcess="false"',
                     b'canBeInstantiatedOnlyOncePerProcess="true"',
+                ).replace(
+                    b'causality="output" alias="alias"><String', b'causality="none" alias="alias"><String'
                 )
             dst.writestr(item, data)
     assert parse(once).coSimulation.canBeInstantiatedOnlyOncePerProcess is True
+    assert variables_of(parse(once))["stringOut"].causality == "local"
+    assert read_info(once).variables["stringOut"].causality == "local"
     path = ssd(tmp_path / "pair.ssd", {"a": str(once), "b": str(once)}, [("a", "realOut", "b", "realIn")])
     sc = api.load_scenario(path)
     assert api.plan(sc).exclusive == (("a", "b"),)
