@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import ModelDescription, ValidationError, read_model_description
+from fmpy.model_description import ModelDescription, Unknown, ValidationError, read_model_description
 from fmpy.validation import validate_model_description
 
 REAL_TYPES = ("Real", "Float64", "Float32")
@@ -220,7 +220,8 @@ FMI1_CAPABILITIES = {
 def _fmi1_terms(path: Path, md: ModelDescription) -> None:
     """An FMI 1.0 description in FMI 2's terms where fmpy leaves FMI 1's (it already reads
     causality "internal" as local and variability "parameter" as a parameter): causality "none"
-    (no influence on the model) is local too; the Capabilities attributes, which fmpy leaves at
+    (no influence on the model) is local too; the outputs are listed with their DirectDependency
+    as FMI 2's ModelStructure lists them (fmpy lists none); the Capabilities attributes, which fmpy leaves at
     their defaults, are set on its CoSimulation; an FMU of CoSimulation_Tool wraps a tool, FMI 2's
     needsExecutionTool."""
     from lxml import etree
@@ -228,11 +229,22 @@ def _fmi1_terms(path: Path, md: ModelDescription) -> None:
     for v in md.modelVariables:
         if v.causality == "none":
             v.causality = "local"
+    with zipfile.ZipFile(path) as zf:
+        root = etree.fromstring(zf.read("modelDescription.xml"))
+    # the outputs with their DirectDependency (the inputs each depends on directly; none given:
+    # every input), where FMI 2 lists them in ModelStructure
+    by_name = {v.name: v for v in md.modelVariables}
+    for i, e in enumerate(root.findall("ModelVariables/ScalarVariable"), 1):
+        if e.get("causality") != "output":
+            continue
+        direct = e.find("DirectDependency")
+        names = [(n.text or "").strip() for n in direct.findall("Name")] if direct is not None else None
+        # a name that is no variable: assume the output depends on every input, as without the list
+        depends = [by_name[n] for n in names] if names is not None and set(names) <= by_name.keys() else None
+        md.outputs.append(Unknown(index=i, variable=by_name[e.get("name")], dependencies=depends))
     if md.coSimulation is None:
         return
 
-    with zipfile.ZipFile(path) as zf:
-        root = etree.fromstring(zf.read("modelDescription.xml"))
     for kind in root.findall("Implementation/*"):
         if kind.tag == "CoSimulation_Tool":
             md.coSimulation.needsExecutionTool = True
@@ -314,10 +326,7 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
 
 
 def feedthrough_outputs(md: ModelDescription) -> set[str]:
-    """Outputs that may depend directly on inputs (no dependency list: assume they do; FMI 1.0
-    descriptions as fmpy reads them have none)."""
-    if md.fmiVersion == "1.0":
-        return {v.name for v in md.modelVariables if v.causality == "output"}
+    """Outputs that may depend directly on inputs (no dependency list: assume they do)."""
     out = set()
     for u in md.outputs:
         deps = u.dependencies

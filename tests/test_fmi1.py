@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from master import api
-from master.fmu import Fmu, parse, read_description, unsupported, variables_of
+from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
 from master.scenario.fmuinfo import read as read_info
 from tests.helpers import run_everywhere, ssd
 
@@ -217,3 +217,37 @@ def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
     with pytest.raises(api.UsageError, match="can be instantiated only once per process"):
         api.run(sc, backend="in-process")
     assert len(api.run(sc, backend="serial").data) == 11
+
+
+def _with_dependency(tmp_path: Path, dependency: bytes) -> Path:
+    """The identity FMU with `dependency` (an FMI 1.0 DirectDependency element) on realOut."""
+    tmp_path.mkdir(exist_ok=True)
+    fmu = tmp_path / "identity.fmu"
+    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(fmu, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(
+                    b'alias="alias"><Real                  />', b'alias="alias"><Real/>' + dependency
+                )
+            dst.writestr(item, data)
+    return fmu
+
+
+def test_fmi1_direct_dependencies_say_which_outputs_depend_on_inputs(tmp_path):
+    """Without DirectDependency an FMI 1.0 output depends on every input; an empty one: on none,
+    and the master then reads it without setting the step-end input first (this FMU's realOut is
+    its realIn all the same, so it lags a step: 2 (t - H))."""
+    assert read_info(IDENTITY_FMU).feedthrough["realOut"] == {"realIn", "integerIn", "booleanIn", "stringIn"}
+    listed = _with_dependency(
+        tmp_path / "listed", b"<DirectDependency><Name>realIn</Name></DirectDependency>"
+    )
+    assert read_info(listed).feedthrough["realOut"] == {"realIn"}
+    none = _with_dependency(tmp_path, b"<DirectDependency/>")
+    assert read_info(none).feedthrough["realOut"] == frozenset()
+    assert "realOut" not in feedthrough_outputs(parse(none))
+    assert "integerOut" in feedthrough_outputs(parse(none))
+    (tmp_path / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
+    d = run_everywhere(api.load_scenario(tmp_path / "identity.ssd"))
+    t = d["time"]
+    assert np.array_equal(d["id.realOut"], 2 * np.concatenate(([0.0], t[:-1])))  # the previous point's input
