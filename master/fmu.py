@@ -138,7 +138,7 @@ def _plain_type(t: str) -> str:
 
 
 def read_description(path: Path) -> ModelDescription:
-    """Read and check the model description of a Co-Simulation FMU (FMI 2.0 or 3.0).
+    """Read and check the model description of a Co-Simulation FMU (FMI 1.0, 2.0 or 3.0).
 
     Read once per file version (path, modification time, size) and process: a run asks for it
     from the planner, the backend and each instance, a sweep from every case. Callers must not
