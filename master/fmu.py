@@ -463,6 +463,7 @@ class Fmu:
         self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
         self.slave = None
         self._instantiated = False
+        self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
         self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
         _LOGGING[self._log_key] = self
         try:
@@ -755,6 +756,7 @@ class Fmu:
         status = f(self.slave.component, start, b"\x01", stop)
         if status > OK_STATUS:
             raise FMICallException(function=self.function_name("fmiInitializeSlave"), status=status)
+        self._initialized = True
 
     def exit_initialization(self) -> None:
         """Leave initialisation mode; the FMU is then ready to step (FMI 1.0: it already is)."""
@@ -799,7 +801,8 @@ class Fmu:
         if s is not None:
             if self._instantiated:
                 try:
-                    s.terminate()
+                    if self.fmi != 1 or self._initialized:
+                        s.terminate()
                 except Exception:
                     pass  # a failed FMU may refuse to terminate; free it anyway
                 try:

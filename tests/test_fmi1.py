@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fmpy.fmi1 import FMICallException
 
 from master import api
 from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
@@ -158,14 +159,25 @@ def test_fmi1_parameters_are_set_before_the_slave_is_initialised(tmp_path):
         fmu.close()
 
 
-def test_a_failing_fmi1_call_names_the_exported_function():
+def test_a_failing_fmi1_call_names_the_exported_function_and_what_the_fmu_logged():
+    """The FMU's log messages reach its instance through FMI 1's callbacks (one logger for all)."""
     fmu = Fmu(IDENTITY_FMU, "id")
+    other = Fmu(IDENTITY_FMU, "other")
     try:
-        assert "identity_fmiDoStep" in str(fmu.call_error("do_step", 3))
+        fmu.enter_initialization(0.0, 1.0)
+        with pytest.raises(FMICallException):
+            fmu.slave.getReal([9999])
+        assert fmu.last_log == "Invalid value reference" and other.last_log == ""
+        error = str(fmu.call_error("do_step", 3))
+        assert (
+            error.startswith("id: identity_fmiDoStep failed")
+            and "(FMU says: Invalid value reference)" in error
+        )
         with pytest.raises(Exception, match="FMI 1.0 cannot save the FMU state"):
             fmu.get_state()
     finally:
         fmu.close()
+        other.close()
 
 
 def test_the_plan_repeats_no_start_up_step_of_an_fmu_that_cannot_save_its_state(tmp_path):
