@@ -1,6 +1,6 @@
-"""One Co-Simulation FMU (FMI 2.0 or 3.0) behind a small interface, with fmpy underneath.
+"""One Co-Simulation FMU (FMI 1.0, 2.0 or 3.0) behind a small interface, with fmpy underneath.
 
-The master only ever talks to `Fmu`: it hides whether the FMU is FMI 2 or 3, prepares
+The master only ever talks to `Fmu`: it hides whether the FMU is FMI 1, 2 or 3, prepares
 value-reference vectors once (`RealPort`), and turns every failing call into an `FmuError`
 that names the instance, the FMI function and the FMU's last log message.
 Times are in seconds.
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import ModelDescription, ValidationError, read_model_description
+from fmpy.model_description import ModelDescription, Unknown, ValidationError, read_model_description
 from fmpy.validation import validate_model_description
 
 REAL_TYPES = ("Real", "Float64", "Float32")
@@ -31,6 +31,18 @@ OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a 
 NO_STATE_RESTORED = ctypes.c_int(1)  # doStep's noSetFMUStatePriorToCurrentPoint
 # FMI function behind each raw call, for error messages
 RAW_NAMES = {
+    "1": {  # FMI 1.0 Co-Simulation: exported as <modelIdentifier>_<name> (Fmu.function_name)
+        "get_real": "fmiGetReal",
+        "set_real": "fmiSetReal",
+        "do_step": "fmiDoStep",
+        "set_input_derivatives": "fmiSetRealInputDerivatives",
+        "get_integer": "fmiGetInteger",
+        "get_boolean": "fmiGetBoolean",
+        "set_integer": "fmiSetInteger",
+        "set_boolean": "fmiSetBoolean",
+        "get_string": "fmiGetString",
+        "set_string": "fmiSetString",
+    },
     "2": {
         "get_real": "fmi2GetReal",
         "set_real": "fmi2SetReal",
@@ -126,7 +138,7 @@ def _plain_type(t: str) -> str:
 
 
 def read_description(path: Path) -> ModelDescription:
-    """Read and check the model description of a Co-Simulation FMU (FMI 2.0 or 3.0).
+    """Read and check the model description of a Co-Simulation FMU (FMI 1.0, 2.0 or 3.0).
 
     Read once per file version (path, modification time, size) and process: a run asks for it
     from the planner, the backend and each instance, a sweep from every case. Callers must not
@@ -190,6 +202,59 @@ def tolerated(problem: str, md: ModelDescription) -> bool:
 
 @functools.lru_cache(maxsize=64)
 def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tuple[str, ...]]:
+    md, found = _checked(path)
+    if md.fmiVersion == "1.0":
+        _fmi1_terms(path, md)
+    return md, found
+
+
+# FMI 1.0 Co-Simulation capabilities that fmpy does not read -> how to read each
+FMI1_CAPABILITIES = {
+    "canHandleVariableCommunicationStepSize": lambda x: x == "true",
+    "canInterpolateInputs": lambda x: x == "true",
+    "maxOutputDerivativeOrder": int,
+    "canBeInstantiatedOnlyOncePerProcess": lambda x: x == "true",
+}
+
+
+def _fmi1_terms(path: Path, md: ModelDescription) -> None:
+    """An FMI 1.0 description in FMI 2's terms where fmpy leaves FMI 1's (it already reads
+    causality "internal" as local and variability "parameter" as a parameter): causality "none"
+    (no influence on the model) is local too; the outputs are listed with their DirectDependency
+    as FMI 2's ModelStructure lists them (fmpy lists none); the Capabilities attributes, which fmpy leaves at
+    their defaults, are set on its CoSimulation; an FMU of CoSimulation_Tool wraps a tool, FMI 2's
+    needsExecutionTool."""
+    from lxml import etree
+
+    for v in md.modelVariables:
+        if v.causality == "none":
+            v.causality = "local"
+    with zipfile.ZipFile(path) as zf:
+        root = etree.fromstring(zf.read("modelDescription.xml"))
+    # the outputs with their DirectDependency (the inputs each depends on directly; none given:
+    # every input), where FMI 2 lists them in ModelStructure
+    by_name = {v.name: v for v in md.modelVariables}
+    for i, e in enumerate(root.findall("ModelVariables/ScalarVariable"), 1):
+        if e.get("causality") != "output":
+            continue
+        direct = e.find("DirectDependency")
+        names = [(n.text or "").strip() for n in direct.findall("Name")] if direct is not None else None
+        # a name that is no variable: assume the output depends on every input, as without the list
+        depends = [by_name[n] for n in names] if names is not None and set(names) <= by_name.keys() else None
+        md.outputs.append(Unknown(index=i, variable=by_name[e.get("name")], dependencies=depends))
+    if md.coSimulation is None:
+        return
+
+    for kind in root.findall("Implementation/*"):
+        if kind.tag == "CoSimulation_Tool":
+            md.coSimulation.needsExecutionTool = True
+        caps = kind.find("Capabilities")
+        for name, read in FMI1_CAPABILITIES.items():
+            if caps is not None and caps.get(name) is not None:
+                setattr(md.coSimulation, name, read(caps.get(name)))
+
+
+def _checked(path: Path) -> tuple[ModelDescription, tuple[str, ...]]:
     try:
         return read_model_description(str(path), validate=True), ()
     except ValidationError as strict:
@@ -209,12 +274,14 @@ def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tu
 
 def unsupported(md: ModelDescription, path: Path) -> str | None:
     """Why the master cannot run the FMU at `path` (description `md`); None if it can. The one
-    rule that `validate` and `run` share: FMI 2.0 or 3.x, a Co-Simulation interface, a binary for
-    this platform."""
+    rule that `validate` and `run` share: FMI 1.0, 2.0 or 3.x, a Co-Simulation interface, a binary
+    for this platform."""
     from fmpy import platform, platform_tuple, supported_platforms
 
-    if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
-        return f"FMI {md.fmiVersion} is not supported: the master runs FMI 2.0 and 3.x co-simulation FMUs"
+    if md.fmiVersion not in ("1.0", "2.0") and not md.fmiVersion.startswith("3."):
+        return (
+            f"FMI {md.fmiVersion} is not supported: the master runs FMI 1.0, 2.0 and 3.x co-simulation FMUs"
+        )
     if md.coSimulation is None:
         return f"model '{md.modelName}' has no co-simulation interface"
     has = supported_platforms(str(path))
@@ -303,14 +370,16 @@ def _needed(names: list[str]) -> list[str]:
     return [n for n in names if n.startswith(ours) or not n.startswith(skip)]
 
 
-# FMI 2 log messages reach the instance through its componentEnvironment: one logger serves all,
-# which fmpy's message-formatting proxy (one per process) needs
+# FMI 2 log messages reach the instance through its componentEnvironment, FMI 1 ones (whose logger
+# has the same C signature) through the instance pointer or, while it is being instantiated, its
+# name: one logger serves all, which fmpy's message-formatting proxy (one per process) needs
 _LOGGING: dict[int, Fmu] = {}
+_NAMED: dict[bytes, Fmu] = {}  # FMI 1 instances by name
 _LOGGER = None
 
 
 def _fmi2_log(env, instance, status, category, message) -> None:
-    fmu = _LOGGING.get(env or 0)
+    fmu = _LOGGING.get(env or 0) or _NAMED.get(instance or b"")
     if fmu is not None:
         fmu.last_log = message.decode("utf-8", "replace") if message else ""
         return
@@ -385,7 +454,8 @@ class Fmu:
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
-        self.fmi3 = self.md.fmiVersion.startswith("3.")
+        self.fmi = int(self.md.fmiVersion[0])  # 1, 2 or 3
+        self.fmi3 = self.fmi == 3
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
@@ -393,6 +463,7 @@ class Fmu:
         self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
         self.slave = None
         self._instantiated = False
+        self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
         self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
         _LOGGING[self._log_key] = self
         try:
@@ -416,6 +487,8 @@ class Fmu:
 
                 self.slave = FMU3Slave(**kw)
                 self.slave.instantiate(logMessage=self._log3)
+            elif self.fmi == 1:
+                self._load1(kw)
             else:
                 from fmpy import calloc, free
                 from fmpy.fmi2 import (
@@ -446,6 +519,41 @@ class Fmu:
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
 
+    def _load1(self, kw: dict) -> None:
+        """Instantiate an FMI 1.0 Co-Simulation slave, its log messages to `last_log`."""
+        from fmpy import calloc, free
+        from fmpy.fmi1 import (
+            FMU1Slave,
+            fmi1CallbackAllocateMemoryTYPE,
+            fmi1CallbackFreeMemoryTYPE,
+            fmi1CallbackFunctions,
+        )
+
+        self.slave = FMU1Slave(**kw)
+        cb = fmi1CallbackFunctions()
+        cb.logger = _fmi2_logger()  # FMI 1's logger type is FMI 2's (same C signature)
+        cb.allocateMemory = fmi1CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi1CallbackFreeMemoryTYPE(free)
+        cb.stepFinished = None
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(ctypes.byref(cb))
+        except (ImportError, OSError, AttributeError):
+            pass
+        self._callbacks = cb
+        _NAMED[self.name.encode("utf-8")] = self
+        self.slave.instantiate(functions=cb)
+        if not self.slave.component:
+            raise FmuError(self.describe("fmiInstantiateSlave failed"))
+        _LOGGING[self.slave.component] = self
+
+    def function_name(self, name: str | None) -> str | None:
+        """The exported name of FMI function `name`: FMI 1.0 prefixes the model identifier."""
+        if name is None or self.fmi != 1:
+            return name
+        return f"{self.md.coSimulation.modelIdentifier}_{name}"
+
     def _log3(self, env, status, category, message) -> None:
         self.last_log = message.decode("utf-8", "replace") if message else ""
 
@@ -472,6 +580,19 @@ class Fmu:
             f.argtypes = argtypes
             return f
 
+        if self.fmi == 1:
+            self.raw_get_real = fn(self.function_name("fmiGetReal"))
+            self.raw_set_real = fn(self.function_name("fmiSetReal"))
+            step1 = fn(
+                self.function_name("fmiDoStep"),
+                [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_char],
+            )
+
+            def do_step1(handle, t: ctypes.c_double, h: ctypes.c_double, _no_set_prior: ctypes.c_int) -> int:
+                return step1(handle, t, h, b"\x01")  # newStep: the last step is accepted
+
+            self.raw_do_step = do_step1
+            return
         if not self.fmi3:
             self.raw_get_real = fn("fmi2GetReal")
             self.raw_set_real = fn("fmi2SetReal")
@@ -504,7 +625,7 @@ class Fmu:
 
     def call_error(self, call: str, status: int) -> FmuError:
         """The FmuError for raw call `call` ("get_real", "set_real", "do_step", ...) returning `status`."""
-        name = RAW_NAMES["3" if self.fmi3 else "2"][call]
+        name = self.function_name(RAW_NAMES[str(self.fmi)][call])
         return FmuError(self.describe(str(FMICallException(function=name, status=status))))
 
     def real_port(self, names: list[str]) -> RealPort:
@@ -613,9 +734,14 @@ class Fmu:
 
     # -- life cycle --------------------------------------------------------------------------
     def enter_initialization(self, start: float, stop: float) -> None:
-        """Enter initialisation mode for the experiment [start, stop] (s)."""
+        """Enter initialisation mode for the experiment [start, stop] (s). FMI 1.0 has no such mode:
+        its slave is initialised here (fmiInitializeSlave, with the parameters and start values set
+        so far), after which inputs may be set and outputs read at the start time as FMI 2 does in
+        initialisation mode."""
         try:
-            if self.fmi3:
+            if self.fmi == 1:
+                self._initialize1(start, stop)
+            elif self.fmi3:
                 self.slave.enterInitializationMode(startTime=start, stopTime=stop)
             else:
                 self.slave.setupExperiment(startTime=start, stopTime=stop)
@@ -623,8 +749,19 @@ class Fmu:
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
+    def _initialize1(self, start: float, stop: float) -> None:
+        f = self.slave.dll[self.function_name("fmiInitializeSlave")]  # fmpy's own has no status type
+        f.restype = ctypes.c_int
+        f.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_char, ctypes.c_double]
+        status = f(self.slave.component, start, b"\x01", stop)
+        if status > OK_STATUS:
+            raise FMICallException(function=self.function_name("fmiInitializeSlave"), status=status)
+        self._initialized = True
+
     def exit_initialization(self) -> None:
-        """Leave initialisation mode; the FMU is then ready to step."""
+        """Leave initialisation mode; the FMU is then ready to step (FMI 1.0: it already is)."""
+        if self.fmi == 1:
+            return
         try:
             self.slave.exitInitializationMode()
         except FMICallException as e:
@@ -632,6 +769,8 @@ class Fmu:
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""
+        if self.fmi == 1:
+            raise FmuError(self.describe("FMI 1.0 cannot save the FMU state"))
         try:
             return self.slave.getFMUState() if self.fmi3 else self.slave.getFMUstate()
         except FMICallException as e:
@@ -662,7 +801,8 @@ class Fmu:
         if s is not None:
             if self._instantiated:
                 try:
-                    s.terminate()
+                    if self.fmi != 1 or self._initialized:
+                        s.terminate()
                 except Exception:
                     pass  # a failed FMU may refuse to terminate; free it anyway
                 try:
@@ -675,5 +815,10 @@ class Fmu:
                 except Exception:
                     pass
         _LOGGING.pop(self._log_key, None)
+        if self.fmi == 1:
+            for key in [k for k, f in _LOGGING.items() if f is self]:
+                del _LOGGING[key]
+            if _NAMED.get(self.name.encode("utf-8")) is self:
+                del _NAMED[self.name.encode("utf-8")]
         if self._own_dir and self.dir.exists():
             shutil.rmtree(self.dir, ignore_errors=True)

@@ -3,7 +3,7 @@
 Real third-party FMUs and files under tests/ssp/ (each folder's ORIGIN.md says where from):
 - an FMU whose description fails fmpy's strict validation but runs: a warning, and its results
   agree with the same FMU driven through fmpy directly;
-- FMI 1.0 FMUs: `validate` and `run` give the same verdict.
+- FMI 1.0 FMUs: `validate` and `run` give the same verdict (Co-Simulation runs, Model Exchange does not).
 """
 
 from __future__ import annotations
@@ -103,18 +103,35 @@ def test_names_declared_twice_among_internal_variables_are_a_defect_not_a_refusa
 
 
 def test_fmi_1_0_validate_and_run_agree(tmp_path: Path):
+    """FMI 1.0 Co-Simulation runs (tests/test_fmi1.py); the same FMU stripped of its Co-Simulation
+    implementation (FMI 1.0 Model Exchange) is refused alike by validate, load and run."""
     scene = IDENTITY / "identity.ssd"
-    problems = validate(scene)
+    assert validate(scene) == []
+    assert api.run(scene, output=tmp_path / "out.csv").data["id.realOut"][-1] == 2.0
+    exchange = tmp_path / "identity.fmu"
+    with zipfile.ZipFile(IDENTITY / "identity.fmu") as src, zipfile.ZipFile(exchange, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                data = (
+                    text[: text.index("<Implementation>")] + text[text.index("</Implementation>") + 17 :]
+                ).encode()
+            dst.writestr(item, data)
+    (tmp_path / "identity.ssd").write_text(scene.read_text())
+    problems = validate(tmp_path / "identity.ssd")
     assert [(p.line, p.element) for p in problems] == [(9, 'ssd:Component "id"')]
-    assert "identity.fmu: FMI 1.0 is not supported" in problems[0].message
+    assert (
+        "identity.fmu: model 'no.viproma.demo.identity' has no co-simulation interface" in problems[0].message
+    )
     with pytest.raises(ScenarioError) as refused:
-        load(scene)
+        load(tmp_path / "identity.ssd")
     assert refused.value.problems == problems
     with pytest.raises(ScenarioError) as run_refused:
-        api.run(scene, output=tmp_path / "out.csv")
+        api.run(tmp_path / "identity.ssd", output=tmp_path / "out.csv")
     assert run_refused.value.problems == problems
-    with pytest.raises(FmuError, match="FMI 1.0 is not supported"):
-        read_description(IDENTITY / "identity.fmu")
+    with pytest.raises(FmuError, match="has no co-simulation interface"):
+        read_description(exchange)
 
 
 def test_an_fmu_without_a_binary_for_this_platform_is_refused_by_validate(tmp_path: Path):

@@ -23,6 +23,11 @@ typedef int fmi2_get_integer(void *, const uint32_t *, size_t, int32_t *);
 typedef int fmi2_get_boolean(void *, const uint32_t *, size_t, int32_t *);
 typedef int fmi2_set_integer(void *, const uint32_t *, size_t, const int32_t *);
 typedef int fmi2_set_boolean(void *, const uint32_t *, size_t, const int32_t *);
+/* FMI 1.0 Co-Simulation: the FMI 2 shapes but for fmiBoolean, one byte (fmiDoStep's newStep too) */
+typedef char fmi1_boolean;
+typedef int fmi1_do_step(void *, double, double, fmi1_boolean);
+typedef int fmi1_get_boolean(void *, const uint32_t *, size_t, fmi1_boolean *);
+typedef int fmi1_set_boolean(void *, const uint32_t *, size_t, const fmi1_boolean *);
 typedef int fmi3_do_step(void *, double, double, bool, bool *, bool *, bool *, double *);
 typedef int fmi3_set_float64(void *, const uint32_t *, size_t, const double *, size_t);
 typedef int fmi3_get_float64(void *, const uint32_t *, size_t, double *, size_t);
@@ -234,13 +239,16 @@ static int set_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
                         int32_t n) {
     int32_t iv[n];
     bool bv[n];
+    fmi1_boolean cv[n];
     for (int32_t i = 0; i < n; i++) {
         iv[i] = kind == MK_INTEGER ? (int32_t)v[i] : v[i] != 0.0;
         bv[i] = v[i] != 0.0;
+        cv[i] = v[i] != 0.0;
     }
     if (kind == MK_INTEGER)
         return c->fmi == 3 ? ((fmi3_set_int32 *)c->set_integer)(c->instance, vrs, (size_t)nvr, iv, (size_t)n)
                            : ((fmi2_set_integer *)c->set_integer)(c->instance, vrs, (size_t)n, iv);
+    if (c->fmi == 1) return ((fmi1_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, cv);
     return c->fmi == 3 ? ((fmi3_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)nvr, bv, (size_t)n)
                        : ((fmi2_set_boolean *)c->set_boolean)(c->instance, vrs, (size_t)n, iv);
 }
@@ -249,18 +257,22 @@ static int get_discrete(const mk_component *c, int32_t kind, const uint32_t *vrs
                         int32_t n) {
     int32_t iv[n];
     bool bv[n];
+    fmi1_boolean cv[n];
     int st;
     if (kind == MK_INTEGER)
         st = c->fmi == 3 ? ((fmi3_get_int32 *)c->get_integer)(c->instance, vrs, (size_t)nvr, iv, (size_t)n)
                          : ((fmi2_get_integer *)c->get_integer)(c->instance, vrs, (size_t)n, iv);
     else if (c->fmi == 3)
         st = ((fmi3_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)nvr, bv, (size_t)n);
+    else if (c->fmi == 1)
+        st = ((fmi1_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, cv);
     else
         st = ((fmi2_get_boolean *)c->get_boolean)(c->instance, vrs, (size_t)n, iv);
     for (int32_t i = 0; i < n; i++)
-        v[i] = kind == MK_BOOLEAN && c->fmi == 3 ? (bv[i] ? 1.0 : 0.0)
-               : kind == MK_BOOLEAN              ? (iv[i] ? 1.0 : 0.0)
-                                                 : (double)iv[i];
+        v[i] = kind == MK_BOOLEAN && c->fmi == 3   ? (bv[i] ? 1.0 : 0.0)
+               : kind == MK_BOOLEAN && c->fmi == 1 ? (cv[i] ? 1.0 : 0.0)
+               : kind == MK_BOOLEAN                ? (iv[i] ? 1.0 : 0.0)
+                                                   : (double)iv[i];
     return st;
 }
 
@@ -544,6 +556,10 @@ static int do_step(const mk_component *c, double t, bool final, int *terminate) 
         *terminate = end ? 1 : 0;
         return st;
     }
+    /* FMI 1.0 newStep: always true, since a step is repeated only from a restored state, which FMI 1
+     * cannot save (the plan gives it no start-up sweeps); it has no fmi2Terminated to ask after a
+     * discard either: fmiDiscard is a failure */
+    if (c->fmi == 1) return ((fmi1_do_step *)c->do_step)(c->instance, t, c->h, 1);
     int st = ((fmi2_do_step *)c->do_step)(c->instance, t, c->h, final ? 1 : 0);
     int32_t ended = 0;
     if (st == FMI2_DISCARD && c->get_boolean_status &&

@@ -158,7 +158,8 @@ typedef void (*mk_function)(void);
 
 /* One FMU instance and its place in the plan. Pointers stay owned by Python. */
 typedef struct {
-    /* FMI: version 2 or 3, the instance and the functions the loop calls */
+    /* FMI: version 1 (Co-Simulation: the FMI 2 calls, with one-byte Booleans and no FMU state), 2 or
+     * 3, the instance and the functions the loop calls */
     int32_t fmi;
     void *instance;
     mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean, set_integer, set_boolean;

@@ -36,23 +36,25 @@ SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking 
 
 Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
 
-FMI_FUNCTIONS = {  # kernel slot -> (FMI 2 name, FMI 3 name); None: not used with that version
-    "do_step": ("fmi2DoStep", "fmi3DoStep"),
-    "set_real": ("fmi2SetReal", "fmi3SetFloat64"),
-    "get_real": ("fmi2GetReal", "fmi3GetFloat64"),
-    "set_derivatives": ("fmi2SetRealInputDerivatives", None),
-    "get_integer": ("fmi2GetInteger", "fmi3GetInt32"),
-    "get_boolean": ("fmi2GetBoolean", "fmi3GetBoolean"),
-    "set_integer": ("fmi2SetInteger", "fmi3SetInt32"),
-    "set_boolean": ("fmi2SetBoolean", "fmi3SetBoolean"),
-    "get_state": ("fmi2GetFMUstate", "fmi3GetFMUState"),
-    "set_state": ("fmi2SetFMUstate", "fmi3SetFMUState"),
-    "free_state": ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
-    "get_boolean_status": ("fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
-    "get_string": ("fmi2GetString", "fmi3GetString"),  # String connections and records only
-    "set_string": ("fmi2SetString", "fmi3SetString"),
-    "get_binary": (None, "fmi3GetBinary"),  # Binary connections and records only
-    "set_binary": (None, "fmi3SetBinary"),
+# kernel slot -> its function in FMI 1.0 (Co-Simulation; exported as <modelIdentifier>_<name>), 2 and 3;
+# None: not used with that version. FMI 1 cannot save its state and has no fmi2Terminated status.
+FMI_FUNCTIONS = {
+    "do_step": ("fmiDoStep", "fmi2DoStep", "fmi3DoStep"),
+    "set_real": ("fmiSetReal", "fmi2SetReal", "fmi3SetFloat64"),
+    "get_real": ("fmiGetReal", "fmi2GetReal", "fmi3GetFloat64"),
+    "set_derivatives": ("fmiSetRealInputDerivatives", "fmi2SetRealInputDerivatives", None),
+    "get_integer": ("fmiGetInteger", "fmi2GetInteger", "fmi3GetInt32"),
+    "get_boolean": ("fmiGetBoolean", "fmi2GetBoolean", "fmi3GetBoolean"),
+    "set_integer": ("fmiSetInteger", "fmi2SetInteger", "fmi3SetInt32"),
+    "set_boolean": ("fmiSetBoolean", "fmi2SetBoolean", "fmi3SetBoolean"),
+    "get_state": (None, "fmi2GetFMUstate", "fmi3GetFMUState"),
+    "set_state": (None, "fmi2SetFMUstate", "fmi3SetFMUState"),
+    "free_state": (None, "fmi2FreeFMUstate", "fmi3FreeFMUState"),
+    "get_boolean_status": (None, "fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
+    "get_string": ("fmiGetString", "fmi2GetString", "fmi3GetString"),  # String connections and records only
+    "set_string": ("fmiSetString", "fmi2SetString", "fmi3SetString"),
+    "get_binary": (None, None, "fmi3GetBinary"),  # Binary connections and records only
+    "set_binary": (None, None, "fmi3SetBinary"),
 }
 
 
@@ -107,14 +109,14 @@ def link_tables(
 
 
 def _function(fmu: Fmu, slot: str) -> int | None:
-    name = FMI_FUNCTIONS[slot][1 if fmu.fmi3 else 0]
+    name = fmu.function_name(FMI_FUNCTIONS[slot][fmu.fmi - 1])
     return None if name is None else _exported(fmu, name)
 
 
 def _require(fmu: Fmu, slot: str, component: str) -> None:
     """FmuError unless the FMU exports the function of kernel slot `slot`."""
     if _function(fmu, slot) is None:
-        name = FMI_FUNCTIONS[slot][1 if fmu.fmi3 else 0]
+        name = fmu.function_name(FMI_FUNCTIONS[slot][fmu.fmi - 1])
         raise FmuError(f"{component}: {fmu.path.name} does not export {name}")
 
 
@@ -295,7 +297,7 @@ class CompiledPlan:
 
     def _fmu_tables(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
         plan = self.plan
-        c.fmi = 3 if fmu.fmi3 else 2
+        c.fmi = fmu.fmi
         c.instance = fmu.slave.component
         for slot in FMI_FUNCTIONS:
             setattr(c, slot, _function(fmu, slot))
@@ -313,7 +315,7 @@ class CompiledPlan:
         # calls), of each kind the links' then the stimuli's: kernel.h
         links = plan.links_into(pc.name)
         stimuli = [s for s in plan.stimuli if s.component == pc.name]
-        version = "3.0" if fmu.fmi3 else "2.0"
+        version = fmu.md.fmiVersion
 
         def kind_of(name: str) -> str | None:  # a variable or an element of an FMI 3 array, y[2]
             return value_kind(variable(fmu, name), version)

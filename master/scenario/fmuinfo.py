@@ -1,6 +1,6 @@
 """What the checks need to know about an FMU, read from its modelDescription.xml.
 
-FMI 2.0 and 3.0 are both read by fmpy; their type names differ (Real vs Float64,
+FMI 1.0, 2.0 and 3.0 are all read by fmpy; their type names differ (Real vs Float64,
 Integer vs Int32), so types are compared through `type_class`.
 """
 
@@ -60,12 +60,12 @@ FLOAT32_MAX = 3.4028234663852886e38
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     """What a connection of a variable of this type carries (`COUPLED`): "Real", "Integer",
     "Boolean", "String", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in
-    FMI 2 an Enumeration is an "Integer") and "Binary"; None if it cannot be connected (a Clock).
+    FMI 1 and 2 an Enumeration is an "Integer") and "Binary"; None if it cannot be connected (a Clock).
     Kinds in `CONTINUOUS` are extrapolated by the consumer's order, the others held between
     communication points (order 0). A String or Binary connection carries at most 1023 bytes
     (kernel.h: MK_TEXT_MAX): a longer output stops the run."""
     if fmi_type == "Enumeration":
-        return "Integer" if fmi_version.startswith("2") else "Int64"
+        return "Int64" if fmi_version.startswith("3") else "Integer"
     return COUPLED.get(fmi_type)
 
 
@@ -215,7 +215,9 @@ def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str
         return None if value in (0, 1) else "not 0 (false) or 1 (true)"
     if value != int(value):
         return "not an integer"
-    typed = "Int32" if fmi_type in ("Integer", "Enumeration") and fmi_version.startswith("2") else fmi_type
+    typed = (
+        "Int32" if fmi_type in ("Integer", "Enumeration") and not fmi_version.startswith("3") else fmi_type
+    )
     low, high = INT_RANGES.get("Int64" if typed == "Enumeration" else typed, (-math.inf, math.inf))
     return None if low <= value <= high else f"outside [{low}, {high}]"
 

@@ -1,0 +1,265 @@
+"""FMI 1.0 Co-Simulation FMUs: ecos's and libcosim's identity FMU (ViProMa's, the same file in both
+repositories: tests/ssp/Ecos-platform-ecos/identity/ORIGIN.md), whose every output equals its input,
+run in every backend against exact values; libcosim's linear transformation scene with its own
+FMI 1.0 FMU; ecos's DP controller (FMI 1.0 parameters)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+
+from master import api
+from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
+from master.scenario.fmuinfo import read as read_info
+from tests.helpers import run_everywhere, ssd
+
+SSP = Path(__file__).parent / "ssp"
+IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
+IDENTITY_FMU = IDENTITY / "identity.fmu"
+LIBCOSIM = SSP / "open-simulation-platform-libcosim" / "linear_transformation"
+DP_CONTROLLER = SSP / "Ecos-platform-ecos" / "dp_ship" / "models" / "DPController.fmu"
+
+
+def test_validate_and_run_agree_that_fmi1_co_simulation_runs():
+    md = parse(IDENTITY_FMU)
+    assert md.fmiVersion == "1.0"
+    assert unsupported(md, IDENTITY_FMU) is None  # the one rule of validate and run
+    assert read_info(IDENTITY_FMU).unsupported is None
+    assert read_description(IDENTITY_FMU) is md
+    assert api.validate(IDENTITY / "identity.ssd") == []
+
+
+def test_the_identity_scene_gives_its_input_exactly_in_every_backend():
+    """realIn follows the table 2 t; realOut equals it at every communication point (FMI 1.0 has no
+    dependency information: the output is read after the step-end input is set)."""
+    d = run_everywhere(api.load_scenario(IDENTITY / "identity.ssd"))
+    t = d["time"]
+    assert len(t) == 11
+    assert np.array_equal(d["id.realOut"], 2 * t)
+
+
+def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
+    """a -> b on all four types: Real, Integer, Boolean (FMI 1 Booleans are one byte), String; a's
+    inputs from stimuli and a binding. b's outputs are a's inputs, exactly."""
+    types = ("real", "integer", "boolean", "string")
+    settings = (
+        "<mm:Record>" + "".join(f'<mm:Variable component="b" name="{x}Out"/>' for x in types) + "</mm:Record>"
+        '<mm:Stimuli><mm:Table component="a" variable="realIn"><mm:Point time="0" value="1"/>'
+        '<mm:Point time="1" value="3"/></mm:Table>'
+        '<mm:Step component="a" variable="integerIn"><mm:Point time="0.45" value="-7"/></mm:Step>'
+        '<mm:Step component="a" variable="booleanIn"><mm:Point time="0.25" value="1"/>'
+        '<mm:Point time="0.65" value="0"/></mm:Step></mm:Stimuli>'
+    )
+    path = ssd(
+        tmp_path / "chain.ssd",
+        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        [("a", f"{x}Out", "b", f"{x}In") for x in types],
+        settings,
+    )
+    sc = api.load_scenario(path, {"a.stringIn": "legacy"})
+    d = run_everywhere(sc)
+    t = d["time"]
+    # b holds a's output of each communication point (order 0): copies, exact
+    assert np.array_equal(d["b.realOut"], 1 + 2 * t)
+    assert np.array_equal(d["b.integerOut"], np.where(t >= 0.45, -7, 0))
+    assert np.array_equal(d["b.booleanOut"], (t >= 0.25) & (t < 0.65))
+    assert set(d["b.stringOut"]) == {"legacy"}
+
+
+def _libcosim_layout(tmp_path: Path) -> Path:
+    """libcosim's scene folder as libcosim lays it out, its FMU at ../../fmi1/identity.fmu (the
+    same file as ecos's), the original SystemStructure.ssd byte for byte; beside it
+    with-settings.ssd, the original with only this project's settings and a stop time added."""
+    scene = tmp_path / "ssp" / "linear_transformation"
+    scene.mkdir(parents=True)
+    for name in ("SystemStructure.ssd", "initial_values.ssv", "initial_values2.ssv"):
+        shutil.copy(LIBCOSIM / name, scene / name)
+    (tmp_path / "fmi1").mkdir()
+    shutil.copy(IDENTITY_FMU, tmp_path / "fmi1" / "identity.fmu")
+    record = "".join(f'<mm:Variable component="identity{i}" name="realOut"/>' for i in (1, 2))
+    settings = (
+        '<ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">'
+        f'<mm:Settings macroStep="0.001"><mm:Record>{record}</mm:Record></mm:Settings>'
+        "</ssc:Annotation></ssd:Annotations>\n    </ssd:System>"
+    )
+    text = (scene / "SystemStructure.ssd").read_text().replace("</ssd:System>", settings)
+    text = text.replace(
+        "</ssd:SystemStructureDescription>",
+        '<ssd:DefaultExperiment startTime="0" stopTime="0.01"/>\n</ssd:SystemStructureDescription>',
+    )
+    text = text.replace('xmlns:ssc="', 'xmlns:mm="urn:org.multirate-master:settings:1"\n  xmlns:ssc="', 1)
+    (scene / "with-settings.ssd").write_text(text)
+    return scene
+
+
+def test_libcosim_linear_transformation_scene_with_its_fmi1_fmu(tmp_path):
+    """identity2's input is 1.3 x + 50 of identity1's output, which is its input as the two .ssv
+    files bind it, in order (4)."""
+    scene = _libcosim_layout(tmp_path)
+    d = run_everywhere(api.load_scenario(scene / "with-settings.ssd"))
+    assert np.all(d["identity1.realOut"] == 4.0)
+    assert np.all(d["identity2.realOut"] == 1.3 * 4.0 + 50)
+
+
+def test_libcosim_runs_its_original_scene_with_the_same_values(tmp_path):
+    """libcosim (libcosimpy) runs the original SystemStructure.ssd with its FMI 1.0 FMU; it reads
+    the two bindings as alternative parameter sets and uses the first (identity1.realIn = 2),
+    SSP applies both in order: this project's run is given libcosim's input to compare the rest."""
+    pytest.importorskip("libcosimpy", reason="the peers extra: pip install libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    scene = _libcosim_layout(tmp_path)
+    (scene / "with-settings.ssd").rename(tmp_path / "with-settings.ssd")  # libcosim reads the folder
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(scene), step_size=10**6)  # 1 ms in ns
+    observer = CosimObserver.create_last_value()
+    ex.add_observer(observer)
+    assert ex.step(10)
+    peer = {}
+    for name in ("identity1", "identity2"):
+        idx = ex.slave_index_from_instance_name(name)
+        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+        peer.update(
+            {f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in ("realIn", "realOut")}
+        )
+    del ex
+    assert peer["identity1.realOut"] == 2.0 and peer["identity2.realOut"] == 1.3 * 2.0 + 50.0
+    (tmp_path / "with-settings.ssd").rename(scene / "with-settings.ssd")
+    sc = api.load_scenario(scene / "with-settings.ssd", {"identity1.realIn": "2"})
+    ours = api.run(sc, backend="serial").data
+    assert ours["identity1.realOut"][-1] == peer["identity1.realOut"]
+    assert ours["identity2.realOut"][-1] == peer["identity2.realOut"]
+
+
+def test_fmi1_parameters_are_set_before_the_slave_is_initialised(tmp_path):
+    """ecos's DP controller: FMI 1.0 variability="parameter" reads as a parameter that bindings
+    set (the FMU reads it back), causality="internal" as local."""
+    variables = variables_of(read_description(DP_CONTROLLER))
+    assert variables["Kpx"].causality == "parameter"
+    assert variables["Kpx"].start == "20000"
+    assert variables["iex0"].causality == "parameter"
+    assert {v.causality for v in variables.values()} <= {"parameter", "input", "output", "local"}
+    fmu = Fmu(DP_CONTROLLER, "dp")
+    try:
+        fmu.set_values({"Kpx": 12345.0})
+        fmu.enter_initialization(0.0, 1.0)
+        fmu.exit_initialization()
+        assert fmu.slave.getReal([variables["Kpx"].vr]) == [12345.0]
+        fmu.do_step(0.0, 0.1)
+    finally:
+        fmu.close()
+
+
+def test_a_failing_fmi1_call_names_the_exported_function_and_what_the_fmu_logged():
+    """The FMU's log messages reach its instance through FMI 1's callbacks (one logger for all)."""
+    fmu = Fmu(IDENTITY_FMU, "id")
+    other = Fmu(IDENTITY_FMU, "other")
+    try:
+        fmu.enter_initialization(0.0, 1.0)
+        with pytest.raises(FMICallException):
+            fmu.slave.getReal([9999])
+        assert fmu.last_log == "Invalid value reference" and other.last_log == ""
+        error = str(fmu.call_error("do_step", 3))
+        assert (
+            error.startswith("id: identity_fmiDoStep failed")
+            and "(FMU says: Invalid value reference)" in error
+        )
+        with pytest.raises(Exception, match="FMI 1.0 cannot save the FMU state"):
+            fmu.get_state()
+    finally:
+        fmu.close()
+        other.close()
+
+
+def test_the_plan_repeats_no_start_up_step_of_an_fmu_that_cannot_save_its_state(tmp_path):
+    path = ssd(
+        tmp_path / "pair.ssd",
+        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        [("a", "realOut", "b", "realIn")],
+    )
+    p = api.plan(api.load_scenario(path))
+    assert p.startup_sweeps == 0
+
+
+def test_master_info_and_run_from_the_cli(tmp_path):
+    cli = [sys.executable, "-m", "master"]
+    info = subprocess.run([*cli, "info", str(IDENTITY_FMU)], capture_output=True, text=True, check=True)
+    assert "FMI 1.0" in info.stdout
+    out = tmp_path / "id.csv"
+    run = subprocess.run(
+        [*cli, "run", str(IDENTITY / "identity.ssd"), "-o", str(out)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert np.array_equal(rows[:, 1], 2 * rows[:, 0])
+
+
+def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
+    """fmpy leaves FMI 1.0 Capabilities at their defaults: the master reads them, so an FMU that can
+    be instantiated only once per process gets a worker per instance, as an FMI 2 one does. FMI 1
+    causality "none" reads as local."""
+    assert parse(IDENTITY_FMU).coSimulation.canHandleVariableCommunicationStepSize is True
+    once = tmp_path / "identity.fmu"
+    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(once, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(
+                    b'canBeInstantiatedOnlyOncePerProcess="false"',
+                    b'canBeInstantiatedOnlyOncePerProcess="true"',
+                ).replace(
+                    b'causality="output" alias="alias"><String', b'causality="none" alias="alias"><String'
+                )
+            dst.writestr(item, data)
+    assert parse(once).coSimulation.canBeInstantiatedOnlyOncePerProcess is True
+    assert variables_of(parse(once))["stringOut"].causality == "local"
+    assert read_info(once).variables["stringOut"].causality == "local"
+    path = ssd(tmp_path / "pair.ssd", {"a": str(once), "b": str(once)}, [("a", "realOut", "b", "realIn")])
+    sc = api.load_scenario(path)
+    assert api.plan(sc).exclusive == (("a", "b"),)
+    with pytest.raises(api.UsageError, match="can be instantiated only once per process"):
+        api.run(sc, backend="in-process")
+    assert len(api.run(sc, backend="serial").data) == 11
+
+
+def _with_dependency(tmp_path: Path, dependency: bytes) -> Path:
+    """The identity FMU with `dependency` (an FMI 1.0 DirectDependency element) on realOut."""
+    tmp_path.mkdir(exist_ok=True)
+    fmu = tmp_path / "identity.fmu"
+    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(fmu, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(
+                    b'alias="alias"><Real                  />', b'alias="alias"><Real/>' + dependency
+                )
+            dst.writestr(item, data)
+    return fmu
+
+
+def test_fmi1_direct_dependencies_say_which_outputs_depend_on_inputs(tmp_path):
+    """Without DirectDependency an FMI 1.0 output depends on every input; an empty one: on none,
+    and the master then reads it without setting the step-end input first (this FMU's realOut is
+    its realIn all the same, so it lags a step: 2 (t - H))."""
+    assert read_info(IDENTITY_FMU).feedthrough["realOut"] == {"realIn", "integerIn", "booleanIn", "stringIn"}
+    listed = _with_dependency(
+        tmp_path / "listed", b"<DirectDependency><Name>realIn</Name></DirectDependency>"
+    )
+    assert read_info(listed).feedthrough["realOut"] == {"realIn"}
+    none = _with_dependency(tmp_path, b"<DirectDependency/>")
+    assert read_info(none).feedthrough["realOut"] == frozenset()
+    assert "realOut" not in feedthrough_outputs(parse(none))
+    assert "integerOut" in feedthrough_outputs(parse(none))
+    (tmp_path / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
+    d = run_everywhere(api.load_scenario(tmp_path / "identity.ssd"))
+    t = d["time"]
+    assert np.array_equal(d["id.realOut"], 2 * np.concatenate(([0.0], t[:-1])))  # the previous point's input
