@@ -17,6 +17,7 @@ from fmpy.fmi1 import FMICallException
 
 from master import api
 from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
+from master.recorder import read_csv
 from master.scenario.fmuinfo import read as read_info
 from tests.helpers import run_everywhere, ssd
 
@@ -106,6 +107,18 @@ def test_libcosim_linear_transformation_scene_with_its_fmi1_fmu(tmp_path):
     d = run_everywhere(api.load_scenario(scene / "with-settings.ssd"))
     assert np.all(d["identity1.realOut"] == 4.0)
     assert np.all(d["identity2.realOut"] == 1.3 * 4.0 + 50)
+
+
+def test_the_original_libcosim_file_runs_from_the_command_line_as_written(tmp_path):
+    """No annotation of ours, no stop time in the file: the command line gives both."""
+    scene = _libcosim_layout(tmp_path)
+    out = tmp_path / "out.csv"
+    run = subprocess.run([sys.executable, "-m", "master", "run", str(scene / "SystemStructure.ssd"), "-q",
+                          "--stop-time", "0.01", "--macro-step", "0.001", "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    d = read_csv(out)
+    assert len(d) == 11 and np.all(d["identity2.realOut"] == 1.3 * 4.0 + 50)
 
 
 def test_libcosim_runs_its_original_scene_with_the_same_values(tmp_path):
