@@ -113,3 +113,27 @@ def finished(cmd: list[str], timeout: float, **popen) -> subprocess.CompletedPro
     with started(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen) as proc:
         out, err = proc.communicate(timeout=timeout)
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+def libcosim_last_values(
+    folder: Path, variables: dict[str, tuple[str, ...]], steps: int = 10
+) -> dict[str, float]:
+    """The peer master libcosim (libcosimpy, the peers extra: the caller skips without it) runs the
+    SSP scene in `folder` for `steps` steps of 1 ms; the last value of each instance's variables,
+    as "instance.variable"."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(folder), step_size=10**6)  # 1 ms in ns
+    observer = CosimObserver.create_last_value()
+    ex.add_observer(observer)
+    assert ex.step(steps)
+    values = {}
+    for name, names in variables.items():
+        idx = ex.slave_index_from_instance_name(name)
+        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+        values.update({f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in names})
+    del ex
+    return values

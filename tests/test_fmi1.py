@@ -19,7 +19,7 @@ from master import api
 from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
 from master.recorder import read_csv
 from master.scenario.fmuinfo import read as read_info
-from tests.helpers import run_everywhere, ssd
+from tests.helpers import libcosim_last_values, run_everywhere, ssd
 
 SSP = Path(__file__).parent / "ssp"
 IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
@@ -126,25 +126,10 @@ def test_libcosim_runs_its_original_scene_with_the_same_values(tmp_path):
     the two bindings as alternative parameter sets and uses the first (identity1.realIn = 2),
     SSP applies both in order: this project's run is given libcosim's input to compare the rest."""
     pytest.importorskip("libcosimpy", reason="the peers extra: pip install libcosimpy")
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-
     scene = _libcosim_layout(tmp_path)
     (scene / "with-settings.ssd").rename(tmp_path / "with-settings.ssd")  # libcosim reads the folder
-    log_output_level(CosimLogLevel.ERROR)
-    ex = CosimExecution.from_ssp_file(str(scene), step_size=10**6)  # 1 ms in ns
-    observer = CosimObserver.create_last_value()
-    ex.add_observer(observer)
-    assert ex.step(10)
-    peer = {}
-    for name in ("identity1", "identity2"):
-        idx = ex.slave_index_from_instance_name(name)
-        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
-        peer.update(
-            {f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in ("realIn", "realOut")}
-        )
-    del ex
+    both = ("realIn", "realOut")
+    peer = libcosim_last_values(scene, {"identity1": both, "identity2": both})
     assert peer["identity1.realOut"] == 2.0 and peer["identity2.realOut"] == 1.3 * 2.0 + 50.0
     (tmp_path / "with-settings.ssd").rename(scene / "with-settings.ssd")
     sc = api.load_scenario(scene / "with-settings.ssd", {"identity1.realIn": "2"})

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import run_everywhere
+from helpers import libcosim_last_values, run_everywhere
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -361,26 +361,12 @@ def test_libcosim_runs_the_libcosim_scene_with_the_same_transformed_value(tmp_pa
     pytest.importorskip("libcosimpy", reason="the peers extra: pip install libcosimpy")
     import shutil
 
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-
     text = (LIBCOSIM / "with-project-fmus.ssd").read_text().replace('"project:gain"', '"gain.fmu"')
     (tmp_path / "SystemStructure.ssd").write_text(text)
     for ssv in LIBCOSIM.glob("*.gain.ssv"):
         shutil.copy(ssv, tmp_path)
     shutil.copy(fmu_path("gain"), tmp_path / "gain.fmu")
-    log_output_level(CosimLogLevel.ERROR)
-    ex = CosimExecution.from_ssp_file(str(tmp_path), step_size=10**6)  # 1 ms in ns
-    observer = CosimObserver.create_last_value()
-    ex.add_observer(observer)
-    assert ex.step(10)
-    peer = {}
-    for name in ("identity1", "identity2"):
-        idx = ex.slave_index_from_instance_name(name)
-        refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
-        peer.update({f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in ("u", "y")})
-    del ex
+    peer = libcosim_last_values(tmp_path, {"identity1": ("u", "y"), "identity2": ("u", "y")})
     assert peer["identity1.y"] == 2.0 and peer["identity2.u"] == 1.3 * 2.0 + 50.0
     sc = api.load_scenario(LIBCOSIM / "with-project-fmus.ssd", {"identity1.u": "2"})
     ours = api.run(replace(sc, record=(("identity2", "u"), ("identity2", "y"))), backend="serial").data
