@@ -9,13 +9,15 @@ FMI 2.0 (the default) builds ``build/fmus/<name>.fmu`` with the layer's ``fmi2.c
 checked-in ``fmus/<name>/modelDescription.xml`` must equal the generated one.  FMI 3.0
 Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c`` and an FMI 3.0
 description generated at build time (not checked in).  A table that uses FMI 3.0 types or
-arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  ``build/fmus`` stands for
+arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  FMI 1.0 Co-Simulation
+(``fmi=1``) builds ``build/fmus/fmi1/<name>.fmu`` with ``fmi1.c`` (functions prefixed with the
+model identifier) and an FMI 1.0 description generated at build time.  ``build/fmus`` stands for
 BUILD_DIR: that folder in a checkout, the user's cache for an installed package, or
 $MASTER_FMU_DIR where set (``_build_dir_default``).
 
 Command line::
 
-    python -m master.fmubuild [--write-xml] [--fmi {2,3}] [name ...]
+    python -m master.fmubuild [--write-xml] [--fmi {1,2,3}] [name ...]
 
 builds the named FMUs (all of that FMI version if none); ``--write-xml`` first regenerates
 ``fmus/<name>/modelDescription.xml`` from the C table (FMI 2.0 only).
@@ -83,10 +85,11 @@ SOLVER_ITEMS = [
 ]
 
 
-FMI_VERSIONS = (2, 3)
+FMI_VERSIONS = (1, 2, 3)
 # The layer's interface file of each FMI version; an FMU is built with its own one only.
-INTERFACE_FILES = {2: "fmi2.c", 3: "fmi3.c"}
+INTERFACE_FILES = {1: "fmi1.c", 2: "fmi2.c", 3: "fmi3.c"}
 FMI_HEADERS = {
+    1: ("fmi1Functions.h",),
     2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
     3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
 }
@@ -134,7 +137,7 @@ def _check_fmi(fmi: int) -> None:
 def project_fmu_names(fmi: int = 2) -> list[str]:
     """Names of the subfolders of fmus/ that contain a model.c, sorted: for FMI 2.0 (the default)
     those that build as FMI 2.0, i.e. without the models whose table declares ``.fmi3_only = 1``;
-    for FMI 3.0 all of them."""
+    for FMI 3.0 all of them; FMI 1.0 as FMI 2.0."""
     _check_fmi(fmi)
     names = sorted(p.parent.name for p in FMUS_DIR.glob("*/model.c"))
     return names if fmi == 3 else [n for n in names if not _declares_fmi3_only(n)]
@@ -453,6 +456,10 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
     if fmi == 3:
         return _model_description_xml3(name, desc)
     reason = _fmi3_only_reason(desc)
+    if reason and fmi == 1:
+        raise FmuBuildError(f"{FMUS_DIR / name / 'model.c'}: builds as FMI 3.0 only ({reason})")
+    if fmi == 1:
+        return _model_description_xml1(name, desc)
     if reason:
         raise FmuBuildError(
             f"{FMUS_DIR / name / 'model.c'}: builds as FMI 3.0 only ({reason}); "
@@ -582,6 +589,78 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
         for vr in sorted(initial_unknowns):
             unknown(iu, vr, False)
 
+    text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    return text.decode("utf-8")
+
+
+# FMI 1.0 names of the table's causalities and variabilities (parameters and locals are "internal").
+_FMI1_CAUSALITY = {"parameter": "internal", "calculatedParameter": "internal", "local": "internal"}
+_FMI1_VARIABILITY = {"fixed": "parameter", "tunable": "parameter"}
+
+
+def _model_description_xml1(name: str, desc: dict[str, Any]) -> str:
+    """FMI 1.0 Co-Simulation (stand-alone) description: the FMI 2.0 table in FMI 1.0 terms.
+    The solver parameter is an Integer in 1..SOLVER_COUNT (its items are in its description)."""
+    variables = desc["variables"]
+    root = etree.Element(
+        "fmiModelDescription",
+        fmiVersion="1.0",
+        modelName=name,
+        modelIdentifier=name,
+        guid=desc["guid"],
+        description=desc["description"] or "",
+        generationTool=GENERATION_TOOL,
+        variableNamingConvention="flat",
+        numberOfContinuousStates=str(len(desc["state_slots"])),
+        numberOfEventIndicators="0",
+    )
+    inputs = {str(vr): v["name"] for vr, v in enumerate(variables) if v["causality"] == "input"}
+    mv = etree.SubElement(root, "ModelVariables")
+    for vr, v in enumerate(variables):
+        if v["causality"] == "independent":
+            continue
+        sv = etree.SubElement(mv, "ScalarVariable", name=v["name"], valueReference=str(vr))
+        if v["description"]:
+            sv.set("description", v["description"])
+        sv.set("variability", _FMI1_VARIABILITY.get(v["variability"], v["variability"]))
+        sv.set("causality", _FMI1_CAUSALITY.get(v["causality"], v["causality"]))
+        has_start = v["effective_initial"] in ("exact", "approx") or v["causality"] == "input"
+        element = {"Solver": "Integer"}.get(v["type"], v["type"])
+        e = etree.SubElement(sv, element)
+        if element == "Real" and v["unit"]:
+            e.set("unit", v["unit"])
+        if element in ("Real", "Integer"):
+            show = _number if element == "Real" else (lambda x: str(int(x)))
+            for attr in ("min", "max"):
+                if math.isfinite(v[attr]):
+                    e.set(attr, show(v[attr]))
+            if has_start:
+                e.set("start", show(v["start"]))
+        elif element == "Boolean" and has_start:
+            e.set("start", "true" if v["start"] else "false")
+        elif element == "String" and has_start:
+            e.set("start", v["start_string"] or "")
+        if has_start and v["causality"] != "input":
+            e.set("fixed", "true" if v["effective_initial"] == "exact" else "false")
+        deps = v["dependencies"]
+        if v["causality"] == "output" and deps is not None:  # no element: depends on every input
+            dd = etree.SubElement(sv, "DirectDependency")
+            for dep in deps.split():
+                if dep in inputs:
+                    etree.SubElement(dd, "Name").text = inputs[dep]
+    implementation = etree.SubElement(root, "Implementation")
+    etree.SubElement(
+        etree.SubElement(implementation, "CoSimulation_StandAlone"),
+        "Capabilities",
+        canHandleVariableCommunicationStepSize="true",
+        canHandleEvents="true",
+        canRejectSteps="false",
+        canInterpolateInputs="true",
+        maxOutputDerivativeOrder="0",
+        canRunAsynchronuously="false",
+        canBeInstantiatedOnlyOncePerProcess="false",
+        canNotUseMemoryManagementFunctions="true",
+    )
     text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
     return text.decode("utf-8")
 
@@ -775,9 +854,9 @@ def build_fmu(name: str, fmi: int = 2) -> Path:
 
     FMI 2.0: build/fmus/<name>.fmu; the checked-in modelDescription.xml must equal the one
     generated from the C table (else FmuBuildError says to run --write-xml), and a table that
-    builds as FMI 3.0 only is refused.  FMI 3.0 (Co-Simulation): build/fmus/fmi3/<name>.fmu with
-    the description generated now.  Builds in a temporary folder and moves the finished .fmu
-    into place atomically.
+    builds as FMI 3.0 only is refused.  FMI 3.0 and 1.0 (Co-Simulation): build/fmus/fmi3/<name>.fmu,
+    build/fmus/fmi1/<name>.fmu, with the description generated now.  Builds in a temporary folder
+    and moves the finished .fmu into place atomically.
     """
     _check_fmi(fmi)
     model_dir = _model_dir(name)
@@ -797,9 +876,11 @@ def build_fmu(name: str, fmi: int = 2) -> Path:
     build_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=build_dir) as tmp:
         stage = Path(tmp) / "fmu"
-        binary = stage / "binaries" / (PLATFORM if fmi == 2 else PLATFORM3) / f"{name}.so"
+        binary = stage / "binaries" / (PLATFORM3 if fmi == 3 else PLATFORM) / f"{name}.so"
         binary.parent.mkdir(parents=True)
         args = [_compiler(), *CFLAGS, "-shared", "-Wl,--no-undefined", *_include_flags(name)]
+        if fmi == 1:  # FMI 1.0 functions carry the model identifier as prefix (fmi1.c)
+            args.append(f"-DMODEL_IDENTIFIER={name}")
         args += [str(p) for p in _c_sources(name, fmi)] + ["-o", str(binary), "-lm"]
         _compile(args, f"building FMU {name}" + ("" if fmi == 2 else f" (FMI {fmi}.0)"))
         sources = stage / "sources"
@@ -858,7 +939,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m master.fmubuild")
         type=int,
         choices=FMI_VERSIONS,
         default=2,
-        help="FMI version: 2 (default, build/fmus/NAME.fmu) or 3 (Co-Simulation, build/fmus/fmi3/NAME.fmu)",
+        help="FMI version: 2 (default, build/fmus/NAME.fmu), 3 or 1 (Co-Simulation, "
+        "build/fmus/fmi3/NAME.fmu, build/fmus/fmi1/NAME.fmu)",
     )
     parser.add_argument(
         "names", nargs="*", help="models to build (default: every folder with model.c that builds for --fmi)"
@@ -866,7 +948,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m master.fmubuild")
     args = parser.parse_args(argv)
     if args.write_xml and args.fmi != 2:
         parser.error(
-            "--write-xml writes the checked-in FMI 2.0 descriptions (FMI 3.0 ones are built each time)"
+            "--write-xml writes the checked-in FMI 2.0 descriptions "
+            "(FMI 1.0 and 3.0 ones are built each time)"
         )
     names = args.names or project_fmu_names(args.fmi)
     try:

@@ -1,7 +1,7 @@
-"""FMI 1.0 Co-Simulation FMUs: ecos's and libcosim's identity FMU (ViProMa's, the same file in both
-repositories: tests/ssp/Ecos-platform-ecos/identity/ORIGIN.md), whose every output equals its input,
-run in every backend against exact values; libcosim's linear transformation scene with its own
-FMI 1.0 FMU; ecos's DP controller (FMI 1.0 parameters)."""
+"""FMI 1.0 Co-Simulation FMUs: the project's identity model (fmus/identity) built as FMI 1.0, with
+the interface of ecos's and libcosim's identity FMU (tests/ssp/Ecos-platform-ecos/identity/ORIGIN.md),
+whose every output equals its input, run in every backend against exact values; libcosim's linear
+transformation scene with that FMU where the scene expects it; FMI 1.0 parameters."""
 
 from __future__ import annotations
 
@@ -14,39 +14,88 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
+from lxml import etree
 
 from master import api
 from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
+from master.fmubuild import fmu_path
 from master.recorder import read_csv
 from master.scenario.fmuinfo import read as read_info
 from tests.helpers import libcosim_last_values, run_everywhere, ssd
 
 SSP = Path(__file__).parent / "ssp"
 IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
-IDENTITY_FMU = IDENTITY / "identity.fmu"
 LIBCOSIM = SSP / "open-simulation-platform-libcosim" / "linear_transformation"
-DP_CONTROLLER = SSP / "Ecos-platform-ecos" / "dp_ship" / "models" / "DPController.fmu"
 
 
-def test_validate_and_run_agree_that_fmi1_co_simulation_runs():
-    md = parse(IDENTITY_FMU)
+@pytest.fixture(scope="module")
+def identity_fmu() -> Path:
+    return fmu_path("identity", fmi=1)
+
+
+def _identity_scene(tmp_path: Path, fmu: Path) -> Path:
+    """ecos's identity scene in tmp_path with `fmu` as the identity.fmu it names."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    if fmu != tmp_path / "identity.fmu":
+        shutil.copy(fmu, tmp_path / "identity.fmu")
+    (tmp_path / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
+    return tmp_path / "identity.ssd"
+
+
+def _edited(fmu: Path, target: Path, edit) -> Path:
+    """A copy of `fmu` at `target` whose modelDescription.xml is `edit`(root element) applied."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(target, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                root = etree.fromstring(data)
+                edit(root)
+                data = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+            dst.writestr(item, data)
+    return target
+
+
+def _variable(root, name: str):
+    return root.find(f'ModelVariables/ScalarVariable[@name="{name}"]')
+
+
+def test_the_identity_model_has_the_interface_of_the_ecos_identity_fmu(identity_fmu):
+    """Names, types, causalities and start values of ecos's identity FMU (its ORIGIN.md); the
+    project's two solver parameters besides."""
+    variables = variables_of(parse(identity_fmu))
+    for kind, type_, start in (("real", "Real", "0"), ("integer", "Integer", "0"),
+                               ("boolean", "Boolean", "false"), ("string", "String", "")):  # fmt: skip
+        assert (variables[f"{kind}In"].causality, variables[f"{kind}In"].type) == ("input", type_)
+        assert variables[f"{kind}In"].start == start
+        assert (variables[f"{kind}Out"].causality, variables[f"{kind}Out"].type) == ("output", type_)
+    assert set(variables) - {
+        f"{k}{d}" for k in ("real", "integer", "boolean", "string") for d in ("In", "Out")
+    } == {
+        "solver",
+        "internal_step",
+    }
+
+
+def test_validate_and_run_agree_that_fmi1_co_simulation_runs(tmp_path, identity_fmu):
+    md = parse(identity_fmu)
     assert md.fmiVersion == "1.0"
-    assert unsupported(md, IDENTITY_FMU) is None  # the one rule of validate and run
-    assert read_info(IDENTITY_FMU).unsupported is None
-    assert read_description(IDENTITY_FMU) is md
-    assert api.validate(IDENTITY / "identity.ssd") == []
+    assert unsupported(md, identity_fmu) is None  # the one rule of validate and run
+    assert read_info(identity_fmu).unsupported is None
+    assert read_description(identity_fmu) is md
+    assert api.validate(_identity_scene(tmp_path, identity_fmu)) == []
 
 
-def test_the_identity_scene_gives_its_input_exactly_in_every_backend():
-    """realIn follows the table 2 t; realOut equals it at every communication point (FMI 1.0 has no
-    dependency information: the output is read after the step-end input is set)."""
-    d = run_everywhere(api.load_scenario(IDENTITY / "identity.ssd"))
+def test_the_identity_scene_gives_its_input_exactly_in_every_backend(tmp_path, identity_fmu):
+    """realIn follows the table 2 t; realOut equals it at every communication point (it depends on
+    realIn directly: the output is read after the step-end input is set)."""
+    d = run_everywhere(api.load_scenario(_identity_scene(tmp_path, identity_fmu)))
     t = d["time"]
     assert len(t) == 11
     assert np.array_equal(d["id.realOut"], 2 * t)
 
 
-def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
+def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path, identity_fmu):
     """a -> b on all four types: Real, Integer, Boolean (FMI 1 Booleans are one byte), String; a's
     inputs from stimuli and a binding. b's outputs are a's inputs, exactly."""
     types = ("real", "integer", "boolean", "string")
@@ -60,7 +109,7 @@ def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
     )
     path = ssd(
         tmp_path / "chain.ssd",
-        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        {"a": str(identity_fmu), "b": str(identity_fmu)},
         [("a", f"{x}Out", "b", f"{x}In") for x in types],
         settings,
     )
@@ -75,15 +124,15 @@ def test_every_type_passes_through_a_chain_of_fmi1_fmus(tmp_path):
 
 
 def _libcosim_layout(tmp_path: Path) -> Path:
-    """libcosim's scene folder as libcosim lays it out, its FMU at ../../fmi1/identity.fmu (the
-    same file as ecos's), the original SystemStructure.ssd byte for byte; beside it
+    """libcosim's scene folder as libcosim lays it out, its FMU (the project's identity built as
+    FMI 1.0) at ../../fmi1/identity.fmu, the original SystemStructure.ssd byte for byte; beside it
     with-settings.ssd, the original with only this project's settings and a stop time added."""
     scene = tmp_path / "ssp" / "linear_transformation"
     scene.mkdir(parents=True)
     for name in ("SystemStructure.ssd", "initial_values.ssv", "initial_values2.ssv"):
         shutil.copy(LIBCOSIM / name, scene / name)
     (tmp_path / "fmi1").mkdir()
-    shutil.copy(IDENTITY_FMU, tmp_path / "fmi1" / "identity.fmu")
+    shutil.copy(fmu_path("identity", fmi=1), tmp_path / "fmi1" / "identity.fmu")
     record = "".join(f'<mm:Variable component="identity{i}" name="realOut"/>' for i in (1, 2))
     settings = (
         '<ssd:Annotations><ssc:Annotation type="org.multirate-master.settings">'
@@ -138,39 +187,36 @@ def test_libcosim_runs_its_original_scene_with_the_same_values(tmp_path):
     assert ours["identity2.realOut"][-1] == peer["identity2.realOut"]
 
 
-def test_fmi1_parameters_are_set_before_the_slave_is_initialised(tmp_path):
-    """ecos's DP controller: FMI 1.0 variability="parameter" reads as a parameter that bindings
-    set (the FMU reads it back), causality="internal" as local."""
-    variables = variables_of(read_description(DP_CONTROLLER))
-    assert variables["Kpx"].causality == "parameter"
-    assert variables["Kpx"].start == "20000"
-    assert variables["iex0"].causality == "parameter"
+def test_fmi1_parameters_are_set_before_the_slave_is_initialised(identity_fmu):
+    """FMI 1.0 variability="parameter" (causality "internal") reads as a parameter that bindings set
+    (the FMU reads it back); nothing reads as an FMI 1 causality."""
+    variables = variables_of(read_description(identity_fmu))
+    assert variables["internal_step"].causality == "parameter"
+    assert variables["internal_step"].start == "0"
     assert {v.causality for v in variables.values()} <= {"parameter", "input", "output", "local"}
-    fmu = Fmu(DP_CONTROLLER, "dp")
+    fmu = Fmu(identity_fmu, "id")
     try:
-        fmu.set_values({"Kpx": 12345.0})
+        fmu.set_values({"internal_step": 0.025})
         fmu.enter_initialization(0.0, 1.0)
         fmu.exit_initialization()
-        assert fmu.slave.getReal([variables["Kpx"].vr]) == [12345.0]
+        assert fmu.slave.getReal([variables["internal_step"].vr]) == [0.025]
         fmu.do_step(0.0, 0.1)
     finally:
         fmu.close()
 
 
-def test_a_failing_fmi1_call_names_the_exported_function_and_what_the_fmu_logged():
+def test_a_failing_fmi1_call_names_the_exported_function_and_what_the_fmu_logged(identity_fmu):
     """The FMU's log messages reach its instance through FMI 1's callbacks (one logger for all)."""
-    fmu = Fmu(IDENTITY_FMU, "id")
-    other = Fmu(IDENTITY_FMU, "other")
+    fmu = Fmu(identity_fmu, "id")
+    other = Fmu(identity_fmu, "other")
+    bad = "fmiGetReal: value reference 9999 out of range (model identity has 10 variables)"
     try:
         fmu.enter_initialization(0.0, 1.0)
         with pytest.raises(FMICallException):
             fmu.slave.getReal([9999])
-        assert fmu.last_log == "Invalid value reference" and other.last_log == ""
+        assert fmu.last_log == bad and other.last_log == ""
         error = str(fmu.call_error("do_step", 3))
-        assert (
-            error.startswith("id: identity_fmiDoStep failed")
-            and "(FMU says: Invalid value reference)" in error
-        )
+        assert error.startswith("id: identity_fmiDoStep failed") and f"(FMU says: {bad})" in error
         with pytest.raises(Exception, match="FMI 1.0 cannot save the FMU state"):
             fmu.get_state()
     finally:
@@ -178,46 +224,44 @@ def test_a_failing_fmi1_call_names_the_exported_function_and_what_the_fmu_logged
         other.close()
 
 
-def test_the_plan_repeats_no_start_up_step_of_an_fmu_that_cannot_save_its_state(tmp_path):
+def test_the_plan_repeats_no_start_up_step_of_an_fmu_that_cannot_save_its_state(tmp_path, identity_fmu):
     path = ssd(
         tmp_path / "pair.ssd",
-        {"a": str(IDENTITY_FMU), "b": str(IDENTITY_FMU)},
+        {"a": str(identity_fmu), "b": str(identity_fmu)},
         [("a", "realOut", "b", "realIn")],
     )
     p = api.plan(api.load_scenario(path))
     assert p.startup_sweeps == 0
 
 
-def test_master_info_and_run_from_the_cli(tmp_path):
+def test_master_info_and_run_from_the_cli(tmp_path, identity_fmu):
     cli = [sys.executable, "-m", "master"]
-    info = subprocess.run([*cli, "info", str(IDENTITY_FMU)], capture_output=True, text=True, check=True)
+    info = subprocess.run([*cli, "info", str(identity_fmu)], capture_output=True, text=True, check=True)
     assert "FMI 1.0" in info.stdout
     out = tmp_path / "id.csv"
     run = subprocess.run(
-        [*cli, "run", str(IDENTITY / "identity.ssd"), "-o", str(out)], capture_output=True, text=True
+        [*cli, "run", str(_identity_scene(tmp_path, identity_fmu)), "-o", str(out)],
+        capture_output=True,
+        text=True,
     )
     assert run.returncode == 0, run.stderr
     rows = np.loadtxt(out, delimiter=",", skiprows=1)
     assert np.array_equal(rows[:, 1], 2 * rows[:, 0])
 
 
-def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
+def test_fmi1_capabilities_are_read_and_honoured(tmp_path, identity_fmu):
     """fmpy leaves FMI 1.0 Capabilities at their defaults: the master reads them, so an FMU that can
     be instantiated only once per process gets a worker per instance, as an FMI 2 one does. FMI 1
     causality "none" reads as local."""
-    assert parse(IDENTITY_FMU).coSimulation.canHandleVariableCommunicationStepSize is True
-    once = tmp_path / "identity.fmu"
-    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(once, "w") as dst:
-        for item in src.infolist():
-            data = src.read(item)
-            if item.filename == "modelDescription.xml":
-                data = data.replace(
-                    b'canBeInstantiatedOnlyOncePerProcess="false"',
-                    b'canBeInstantiatedOnlyOncePerProcess="true"',
-                ).replace(
-                    b'causality="output" alias="alias"><String', b'causality="none" alias="alias"><String'
-                )
-            dst.writestr(item, data)
+    assert parse(identity_fmu).coSimulation.canHandleVariableCommunicationStepSize is True
+
+    def once_only(root):
+        root.find("Implementation/CoSimulation_StandAlone/Capabilities").set(
+            "canBeInstantiatedOnlyOncePerProcess", "true"
+        )
+        _variable(root, "stringOut").set("causality", "none")
+
+    once = _edited(identity_fmu, tmp_path / "identity.fmu", once_only)
     assert parse(once).coSimulation.canBeInstantiatedOnlyOncePerProcess is True
     assert variables_of(parse(once))["stringOut"].causality == "local"
     assert read_info(once).variables["stringOut"].causality == "local"
@@ -229,35 +273,29 @@ def test_fmi1_capabilities_are_read_and_honoured(tmp_path):
     assert len(api.run(sc, backend="serial").data) == 11
 
 
-def _with_dependency(tmp_path: Path, dependency: bytes) -> Path:
-    """The identity FMU with `dependency` (an FMI 1.0 DirectDependency element) on realOut."""
-    tmp_path.mkdir(exist_ok=True)
-    fmu = tmp_path / "identity.fmu"
-    with zipfile.ZipFile(IDENTITY_FMU) as src, zipfile.ZipFile(fmu, "w") as dst:
-        for item in src.infolist():
-            data = src.read(item)
-            if item.filename == "modelDescription.xml":
-                data = data.replace(
-                    b'alias="alias"><Real                  />', b'alias="alias"><Real/>' + dependency
-                )
-            dst.writestr(item, data)
-    return fmu
+def _with_dependency(fmu: Path, target: Path, dependency: str | None) -> Path:
+    """`fmu` with realOut's DirectDependency element replaced by `dependency` (None: left out)."""
+
+    def edit(root):
+        out = _variable(root, "realOut")
+        out.remove(out.find("DirectDependency"))
+        if dependency is not None:
+            out.append(etree.fromstring(dependency))
+
+    return _edited(fmu, target, edit)
 
 
-def test_fmi1_direct_dependencies_say_which_outputs_depend_on_inputs(tmp_path):
+def test_fmi1_direct_dependencies_say_which_outputs_depend_on_inputs(tmp_path, identity_fmu):
     """Without DirectDependency an FMI 1.0 output depends on every input; an empty one: on none,
     and the master then reads it without setting the step-end input first (this FMU's realOut is
     its realIn all the same, so it lags a step: 2 (t - H))."""
-    assert read_info(IDENTITY_FMU).feedthrough["realOut"] == {"realIn", "integerIn", "booleanIn", "stringIn"}
-    listed = _with_dependency(
-        tmp_path / "listed", b"<DirectDependency><Name>realIn</Name></DirectDependency>"
-    )
-    assert read_info(listed).feedthrough["realOut"] == {"realIn"}
-    none = _with_dependency(tmp_path, b"<DirectDependency/>")
+    assert read_info(identity_fmu).feedthrough["realOut"] == {"realIn"}  # as the project's FMU lists it
+    every = _with_dependency(identity_fmu, tmp_path / "every" / "identity.fmu", None)
+    assert read_info(every).feedthrough["realOut"] == {"realIn", "integerIn", "booleanIn", "stringIn"}
+    none = _with_dependency(identity_fmu, tmp_path / "none" / "identity.fmu", "<DirectDependency/>")
     assert read_info(none).feedthrough["realOut"] == frozenset()
     assert "realOut" not in feedthrough_outputs(parse(none))
     assert "integerOut" in feedthrough_outputs(parse(none))
-    (tmp_path / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
-    d = run_everywhere(api.load_scenario(tmp_path / "identity.ssd"))
+    d = run_everywhere(api.load_scenario(_identity_scene(tmp_path / "none", none)))
     t = d["time"]
     assert np.array_equal(d["id.realOut"], 2 * np.concatenate(([0.0], t[:-1])))  # the previous point's input

@@ -215,7 +215,7 @@ const char *type_name(const Instance *inst, int type) {
                                                 "Float32", "Int8",   "UInt8",   "Int16",  "UInt16",
                                                 "UInt32",  "Int64",  "UInt64",  "Binary"};
     if (type < 0 || type >= T_COUNT) return "unknown";
-    if (inst->fmi_version == 2 && type <= T_SOLVER) return names2[type];
+    if (inst->fmi_version <= 2 && type <= T_SOLVER) return names2[type];
     return names3[type];
 }
 

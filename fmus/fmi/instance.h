@@ -83,7 +83,7 @@ struct Instance {
     const ModelDef *model;
     char *name;
     InstanceKind kind;
-    int fmi_version;         /* 2 or 3: the interface that created the instance (names in messages) */
+    int fmi_version;         /* 1, 2 or 3: the interface that created the instance (names in messages) */
     EmitFn emit;
     void (*logger)(void);    /* the importer's logger, cast back to its own type by emit */
     void *env;               /* the importer's environment pointer, passed to the logger */
