@@ -9,6 +9,7 @@ Real third-party FMUs and files under tests/ssp/ (each folder's ORIGIN.md says w
 from __future__ import annotations
 
 import logging
+import shutil
 import zipfile
 from pathlib import Path
 
@@ -17,13 +18,14 @@ import pytest
 
 import master.api as api
 from master.fmu import FmuError, defects, parse, read_description
+from master.fmubuild import fmu_path
 from master.scenario import ScenarioError, load, validate
+from tests.helpers import ssd
 
 SSP = Path(__file__).parent / "ssp"
 ECS = SSP / "OpenModelica-OMSimulator" / "embrace"
 ECS_SCENE = ECS / "ecs_sw_alone.ssd"
 ECS_FMU = ECS / "resources" / "0002_ECS_SW.fmu"
-DP_CONTROLLER = SSP / "Ecos-platform-ecos" / "dp_ship" / "models" / "DPController.fmu"
 IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
 
 
@@ -92,24 +94,48 @@ def test_a_description_with_a_refused_defect_stays_refused_in_one_line(tmp_path:
     assert "Enumeration" not in first  # the tolerated defect is not what refuses it
 
 
-def test_names_declared_twice_among_internal_variables_are_a_defect_not_a_refusal():
-    found = defects(DP_CONTROLLER)
-    assert [d.split(" (")[0] for d in found] == [
-        'The variable name "iepsi"',
-        'The variable name "iex"',
-        'The variable name "iey"',
-    ]
-    assert parse(DP_CONTROLLER).modelName == "DPController"
+def _with_duplicate_local(fmu: Path, target: Path) -> Path:
+    """`fmu` (FMI 1.0 msd) whose description names its local der(v) der(x) too: the defect of
+    ecos's DPController.fmu, which declares internal variable names twice (dp_ship/ORIGIN.md)."""
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(target, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                assert data.count(b'name="der(v)"') == 1
+                data = data.replace(b'name="der(v)"', b'name="der(x)"')
+            dst.writestr(item, data)
+    return target
+
+
+def test_names_declared_twice_among_internal_variables_are_a_defect_not_a_refusal(tmp_path):
+    """The FMU runs, with the results of the FMU whose names are unique."""
+    intact = fmu_path("msd", fmi=1)
+    twice = _with_duplicate_local(intact, tmp_path / "twice.fmu")
+    assert defects(intact) == ()
+    assert [d.split(" (")[0] for d in defects(twice)] == ['The variable name "der(x)"']
+    assert parse(twice).modelName == "msd"
+    # b's coupling input x_in does nothing (cc = dc = 0): the connection only makes the scene valid
+    record = (
+        '<mm:Record><mm:Variable component="a" name="x"/><mm:Variable component="b" name="x"/></mm:Record>'
+    )
+    scene = ssd(tmp_path / "pair.ssd", {"a": str(intact), "b": str(twice)}, [("a", "x", "b", "x_in")], record)
+    d = api.run(api.load_scenario(scene, {"a.x0": "1", "b.x0": "1"}), backend="serial").data
+    assert d["a.x"][0] == 1.0 and d["a.x"][-1] < 1.0  # it moved
+    assert np.array_equal(d["b.x"], d["a.x"])
 
 
 def test_fmi_1_0_validate_and_run_agree(tmp_path: Path):
-    """FMI 1.0 Co-Simulation runs (tests/test_fmi1.py); the same FMU stripped of its Co-Simulation
-    implementation (FMI 1.0 Model Exchange) is refused alike by validate, load and run."""
-    scene = IDENTITY / "identity.ssd"
-    assert validate(scene) == []
-    assert api.run(scene, output=tmp_path / "out.csv").data["id.realOut"][-1] == 2.0
+    """FMI 1.0 Co-Simulation runs (tests/test_fmi1.py: the project's identity built as FMI 1.0, in
+    ecos's identity scene); the same FMU stripped of its Co-Simulation implementation (FMI 1.0 Model
+    Exchange) is refused alike by validate, load and run."""
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    (runs / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
+    shutil.copy(fmu_path("identity", fmi=1), runs / "identity.fmu")
+    assert validate(runs / "identity.ssd") == []
+    assert api.run(runs / "identity.ssd", output=tmp_path / "out.csv").data["id.realOut"][-1] == 2.0
     exchange = tmp_path / "identity.fmu"
-    with zipfile.ZipFile(IDENTITY / "identity.fmu") as src, zipfile.ZipFile(exchange, "w") as dst:
+    with zipfile.ZipFile(runs / "identity.fmu") as src, zipfile.ZipFile(exchange, "w") as dst:
         for item in src.infolist():
             data = src.read(item)
             if item.filename == "modelDescription.xml":
@@ -118,12 +144,10 @@ def test_fmi_1_0_validate_and_run_agree(tmp_path: Path):
                     text[: text.index("<Implementation>")] + text[text.index("</Implementation>") + 17 :]
                 ).encode()
             dst.writestr(item, data)
-    (tmp_path / "identity.ssd").write_text(scene.read_text())
+    (tmp_path / "identity.ssd").write_text((IDENTITY / "identity.ssd").read_text())
     problems = validate(tmp_path / "identity.ssd")
     assert [(p.line, p.element) for p in problems] == [(9, 'ssd:Component "id"')]
-    assert (
-        "identity.fmu: model 'no.viproma.demo.identity' has no co-simulation interface" in problems[0].message
-    )
+    assert "identity.fmu: model 'identity' has no co-simulation interface" in problems[0].message
     with pytest.raises(ScenarioError) as refused:
         load(tmp_path / "identity.ssd")
     assert refused.value.problems == problems
