@@ -81,6 +81,23 @@ def test_that_fmu_runs_as_fmpy_alone_runs_it(tmp_path: Path):
     assert len(set(expected)) > 3  # the output follows its inputs: the comparison means something
 
 
+def test_that_fmu_computes_what_the_originals_sources_say(tmp_path: Path):
+    # OpenSW.c and OpenSW_data.c of the original: a PI controller with anti-windup sampled every
+    # 1/30 s (three samples per 0.1 s step here, the inputs held), the output that of the last sample.
+    ecs_scene, _ = ecs(tmp_path)
+    got = api.run(ecs_scene, output=tmp_path / "ecs.csv").data["ecs_sw.TCoolingPack"][1:]
+    ts, integral, windup, expected = 1 / 30, 0.0, 0.0, []
+    for k in range(20):
+        e = 293.0 - (250 + 50 * k * 0.1)
+        for _ in range(3):
+            v = 5.0 * e + (integral + 1.0 * (e + windup) * ts)
+            sat = min(200.0, max(v, -200.0))
+            integral, windup = integral + 1.0 * (e + windup) * ts, sat - v
+        expected.append(sat + 293.0 if k >= 10 else 313.0)
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-9)
+    assert min(expected) == 93.0  # saturated at the lower limit: the anti-windup path is covered
+
+
 def test_a_description_with_a_refused_defect_stays_refused_in_one_line(tmp_path: Path):
     # The FMU with the start value of its input removed: FMI requires one (kept a refusal).
     ecs_scene, ecs_fmu = ecs(tmp_path)

@@ -7,7 +7,9 @@
  * memory W are unit delays, I <- I + Ki (e + W) Ts and W <- s - v; the output, s + 293 when
  * airborne, else 313, is computed in the sample as well, so after a step it is that of the last
  * sample and a later input changes it at the next one.  Here I, W and the output are states stepped
- * by Euler with the internal step Ts (the default), which gives those updates. */
+ * by Euler with the internal step Ts (the default), which gives those updates: one sample every Ts
+ * of time (the original takes one sample per doStep whatever its length: the same where the master
+ * steps by Ts). */
 #include "model.h"
 
 #define TS (1.0 / 30.0)
@@ -49,7 +51,7 @@ static const Variable VARIABLES[N_VARIABLES] = {
     {"der(UnitDelay)", T_REAL, C_LOCAL, V_CONTINUOUS, I_CALCULATED, R_DER_I, 0.0, NULL, -INFINITY,
      INFINITY, NULL, "Ki (e + W)", VR_I, "2 6"},
     {"der(UnitDelay1)", T_REAL, C_LOCAL, V_CONTINUOUS, I_CALCULATED, R_DER_W, 0.0, NULL, -INFINITY,
-     INFINITY, NULL, "(s - v) / Ts", VR_W, "2 5 6"},
+     INFINITY, NULL, "(s - v - W) / Ts", VR_W, "2 5 6"},
     {"der(TCoolingPack)", T_REAL, C_LOCAL, V_CONTINUOUS, I_CALCULATED, R_DER_TCOOLING, 0.0, NULL, -INFINITY,
      INFINITY, NULL, "(the sample's output - TCoolingPack) / Ts", VR_TCOOLING, "2 3 4 5 6"},
 };
@@ -70,7 +72,7 @@ static ModelStatus derivatives(Instance *inst, double t, const double *x, double
     control(u, x, &v, &s);
     double y = model_integers(inst)[I_STATE] == AIRBORNE ? s + T_SET : T_GROUND;
     dx[0] = KI * ((T_SET - u) + x[1]);
-    dx[1] = (s - v) / TS;
+    dx[1] = ((s - v) - x[1]) / TS;
     dx[2] = (y - x[2]) / TS;
     return MODEL_OK;
 }
