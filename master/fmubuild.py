@@ -509,6 +509,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
             etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
 
     _log_categories(root, desc)
+    _default_experiment(root, desc)
 
     vendor = etree.SubElement(etree.SubElement(root, "VendorAnnotations"), "Tool", name=GENERATION_TOOL)
     etree.SubElement(vendor, "Capabilities", maxInputDerivativeOrder=str(desc["max_input_derivative_order"]))
@@ -665,6 +666,12 @@ def _model_description_xml1(name: str, desc: dict[str, Any]) -> str:
     return text.decode("utf-8")
 
 
+def _default_experiment(root: etree._Element, desc: dict) -> None:
+    """DefaultExperiment with the model's stepSize, where it gives one (the same in FMI 2.0 and 3.0)."""
+    if desc["default_step_size"]:
+        etree.SubElement(root, "DefaultExperiment", stepSize=repr(float(desc["default_step_size"])))
+
+
 def _unit_definitions(root: etree._Element, units: set[str]) -> None:
     """UnitDefinitions (with SI base units where known) of the units used (the same in FMI 2.0 and 3.0)."""
     if units:
@@ -740,6 +747,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         for value, (item, text) in enumerate(SOLVER_ITEMS, start=1):
             etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
     _log_categories(root, desc)
+    _default_experiment(root, desc)
 
     mv = etree.SubElement(root, "ModelVariables")
     etree.SubElement(

@@ -1,12 +1,15 @@
 """Helpers of the tests: scenario files written as SSD, runs in every backend, exact polynomials,
-processes started so that nothing outlives a test."""
+processes started so that nothing outlives a test, third-party scenes laid out with project FMUs."""
 
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
+import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from fractions import Fraction
@@ -16,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import master.api as api
+from master.fmubuild import fmu_path
 from master.scenario.model import Scenario
 
 BACKENDS = ("serial", "parallel", "in-process")
@@ -137,3 +141,60 @@ def libcosim_last_values(
         values.update({f"{name}.{v}": observer.last_real_values(idx, [refs[v]])[0] for v in names})
     del ex
     return values
+
+
+# The FMUs third-party scenes name (tests/ssp/*/ORIGIN.md), by file name: the project model built
+# with the same interface and equations. The files themselves are not kept (nothing built is).
+PROJECT_FMUS = {
+    "Add.fmu": "blocks_add",  # Modelica.Blocks.Math.Add, as OpenModelica exports it
+    "0001_addP.fmu": "blocks_add",
+    "Gain.fmu": "blocks_gain",  # Modelica.Blocks.Math.Gain
+    "0002_P.fmu": "blocks_gain",
+    "0003_addI.fmu": "blocks_add3",  # Modelica.Blocks.Math.Add3
+    "0002_ECS_SW.fmu": "ecs_sw",  # embrace's cooling software (Simulink), with its description's defect
+}
+
+# The Simulink export declares Input.Aircraft_State an Enumeration without a variability, so
+# "continuous", which FMI 2.0 forbids for an Enumeration, and cannot interpolate inputs (a sampled
+# model): the copy's description says the same.
+_AIRCRAFT_STATE = (
+    '<SimpleType name="Aircraft_State_Type"><Enumeration>'
+    + "".join(
+        f'<Item name="Aircraft_State_Type_{item}" value="{value}"/>'
+        for value, item in enumerate(("Stationary", "Rolling", "Rotating", "Touching_Down", "Airborne"))
+    )
+    + "</Enumeration></SimpleType>"
+)
+
+
+def _with_enumeration_defect(fmu: Path) -> None:
+    with zipfile.ZipFile(fmu) as z:
+        members = {item.filename: z.read(item) for item in z.infolist()}
+    text = members["modelDescription.xml"].decode()
+    declared, n = re.subn(
+        r'(<ScalarVariable name="Input.Aircraft_State"[^>]*) variability="discrete">\s*<Integer start="0"/>',
+        r'\1>\n      <Enumeration declaredType="Aircraft_State_Type" start="0"/>',
+        text,
+    )
+    assert n == 1, "ecs_sw's description no longer declares its Integer input as expected"
+    declared = declared.replace("<TypeDefinitions>", "<TypeDefinitions>\n    " + _AIRCRAFT_STATE, 1)
+    members["modelDescription.xml"] = declared.replace('canInterpolateInputs="true"', "").encode()
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+
+
+def third_party_scene(folder: Path, tmp_path: Path) -> Path:
+    """A copy of a third-party scene folder under tmp_path: its text files, and at each FMU path its
+    .ssd files name the project FMU of PROJECT_FMUS. Returns the copy's folder."""
+    copy = tmp_path / folder.name
+    shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("*.fmu"), dirs_exist_ok=True)
+    for ssd in copy.glob("*.ssd"):
+        for source in re.findall(r'source="([^"]+\.fmu)"', ssd.read_text()):
+            fmu = copy / source
+            if not fmu.exists():
+                fmu.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy(fmu_path(PROJECT_FMUS[fmu.name]), fmu)
+                if fmu.name == "0002_ECS_SW.fmu":
+                    _with_enumeration_defect(fmu)
+    return copy

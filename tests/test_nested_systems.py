@@ -1,8 +1,9 @@
 """Nested ssd:System elements, connections through system connectors, system-level parameters.
 
-Real third-party files (OMSimulator's testsuite, tests/ssp/OpenModelica-OMSimulator/, with the
-values OMSimulator's own tests print) and a nested scene of the project's gain FMU
-(tests/scenarios/nested/nested.ssd) whose results are exact products.
+Real third-party files (OMSimulator's testsuite, tests/ssp/OpenModelica-OMSimulator/, laid out with
+the project's FMUs of the same interface as theirs, with the values OMSimulator's own tests print)
+and a nested scene of the project's gain FMU (tests/scenarios/nested/nested.ssd) whose results are
+exact products.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import third_party_scene
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -22,8 +24,6 @@ from master.scenario.names import join, part, split
 HERE = Path(__file__).parent
 NESTED = HERE / "scenarios" / "nested" / "nested.ssd"
 OMS = HERE / "ssp" / "OpenModelica-OMSimulator"
-PARAMETERS = OMS / "import_export_parameters1" / "with-settings.ssd"
-TOP_LEVEL = OMS / "toplevelparameter1" / "with-settings.ssd"
 STAGE = "stage one.'g.1'"  # component "g.1" of system "stage one"
 
 NS = """xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -109,28 +109,30 @@ def test_cli_quotes_dotted_names(tmp_path):
 
 
 @pytest.mark.parametrize("scene", ["import_export_parameters1", "import_export_parameters2"])
-def test_omsimulator_parameter_connectors_drive_component_parameters(scene):
+def test_omsimulator_parameter_connectors_drive_component_parameters(tmp_path, scene):
     """Parameter connectors k_cref and T_cref of the top system feed addP.k1 and addI.k2 over the
     values bound to those directly, and the undriven top input Input_cref feeds addP.u1, as
     OMSimulator's tests report (addP.k1 30, addI.k2 20); the values come from one .ssv on the system
     (1) or from an .ssv on each level, the nested system foo's included (2)."""
-    path = OMS / scene / "with-settings.ssd"
+    path = third_party_scene(OMS / scene, tmp_path) / "with-settings.ssd"
     params = {c.name: c.parameters for c in load(path).components}
     assert params == {"addP": {"k1": 30.0, "k2": -1.0, "u1": -20.0}, "addI": {"k2": 20.0}, "P": {}}
     assert api.run(path).data[-1]["addP.y"] == 30.0 * -20.0  # k1 u1 + k2 u2 with u2 = 0
 
 
-def test_omsimulator_output_figure_with_its_input():
+def test_omsimulator_output_figure_with_its_input(tmp_path):
     """OMSimulator's test sets Input_cref to -3.7 and prints addP.y = Output_cref = -111."""
-    result = api.run(PARAMETERS, set_values=["Input_cref=-3.7"])
+    path = third_party_scene(OMS / "import_export_parameters1", tmp_path) / "with-settings.ssd"
+    result = api.run(path, set_values=["Input_cref=-3.7"])
     assert result.data[-1]["addP.y"] == pytest.approx(-111.0, rel=1e-15)
 
 
-def test_omsimulator_top_level_bindings_beat_component_ones():
+def test_omsimulator_top_level_bindings_beat_component_ones(tmp_path):
     """toplevelparameter1: root.ssv on the system (addP.k1 -200, addP.k2 -300) beats addp.ssv on
     the component (10, 20), as OMSimulator prints; Input_cref, bound and unconnected, is accepted."""
-    assert load(TOP_LEVEL).component("addP").parameters == {"k1": -200.0, "k2": -300.0}
-    result = api.run(TOP_LEVEL, set_values=["addP.u1=1", "addP.u2=2"])
+    path = third_party_scene(OMS / "toplevelparameter1", tmp_path) / "with-settings.ssd"
+    assert load(path).component("addP").parameters == {"k1": -200.0, "k2": -300.0}
+    result = api.run(path, set_values=["addP.u1=1", "addP.u2=2"])
     assert np.all(result.data["addP.y"][1:] == -200.0 - 600.0)
 
 

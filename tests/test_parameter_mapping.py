@@ -2,8 +2,9 @@
 to the parameters they set, with the mapping entry's transformation and unit conversion applied.
 
 Real third-party files: five scenes of OMSimulator's testsuite (tests/ssp/OpenModelica-OMSimulator/,
-ORIGIN.md there), checked against the values OMSimulator's own tests print. A scene written here
-on the project's discrete FMU covers what those do not: unit conversion, suppressUnitConversion,
+ORIGIN.md there; LinearTransformation3 laid out with the project's FMUs of its FMUs' interface),
+checked against the values OMSimulator's own tests print. A scene written here on the project's
+discrete FMU covers what those do not: unit conversion, suppressUnitConversion,
 the mapping transformations, and the problems, one line each.
 """
 
@@ -16,12 +17,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import third_party_scene
 from lxml import etree
 
 import master.api as api
 from master.scenario import ScenarioError, load, validate
 
 OMS = Path(__file__).parent / "ssp" / "OpenModelica-OMSimulator"
+
+
+def mapped_scene(tmp_path: Path) -> Path:
+    """LinearTransformation3 with its FMUs, in tmp_path."""
+    return third_party_scene(OMS / "LinearTransformation3", tmp_path) / "SystemStructure.ssd"
 
 
 def connector_values(path: Path) -> dict[str, float]:
@@ -39,11 +46,11 @@ def connector_values(path: Path) -> dict[str, float]:
     return {key: float(entry.value.get("value")) for key, entry in values.items()}
 
 
-def test_omsimulator_linear_transformation_in_a_parameter_mapping():
+def test_omsimulator_linear_transformation_in_a_parameter_mapping(tmp_path):
     """LinearTransformation3: mappedParameter1.ssv binds mapped_Gain_u = mapped_Gain_k = 2 on the
     system, mappedEntry1.ssm (SSP 2.0) maps them to Gain1.u (2 v + 10) and Gain1.k (4 v + 5);
     OMSimulator prints Gain1.k 13, Gain1.u 14, Gain1.y 182 and Add1.u1 182."""
-    path = OMS / "LinearTransformation3" / "SystemStructure.ssd"
+    path = mapped_scene(tmp_path)
     params = {c.name: c.parameters for c in load(path).components}
     assert params == {"Gain1": {"u": 2.0 * 2.0 + 10.0, "k": 4.0 * 2.0 + 5.0}, "Add1": {}}
     d = api.run(path).data
@@ -52,7 +59,7 @@ def test_omsimulator_linear_transformation_in_a_parameter_mapping():
 
 def test_omsimulator_mapped_scene_runs_from_the_command_line(tmp_path):
     out = tmp_path / "out.csv"
-    path = OMS / "LinearTransformation3" / "SystemStructure.ssd"
+    path = mapped_scene(tmp_path)
     r = subprocess.run(
         [sys.executable, "-m", "master", "run", str(path), "-o", str(out)],
         capture_output=True, text=True, timeout=300,
@@ -307,7 +314,7 @@ def test_a_mapped_system_connector_value_reaches_its_components_transformed(tmp_
 def test_a_mapping_inside_an_ssp_archive(tmp_path):
     import zipfile
 
-    folder = OMS / "LinearTransformation3"
+    folder = mapped_scene(tmp_path / "scene").parent
     archive = tmp_path / "LinearTransformation3.ssp"
     with zipfile.ZipFile(archive, "w") as z:
         for f in folder.rglob("*"):
@@ -340,6 +347,6 @@ def test_settings_written_to_another_folder_keep_the_mapping_file(tmp_path):
     originals, so the mapped values survive."""
     from master.scenario.writer import write_settings
 
-    sc = load(OMS / "LinearTransformation3" / "SystemStructure.ssd")
+    sc = load(mapped_scene(tmp_path / "scene"))
     again = load(write_settings(sc, sc, tmp_path / "copy.ssd", "test"))
     assert again.component("Gain1").parameters == {"u": 14.0, "k": 13.0}

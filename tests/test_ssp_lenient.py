@@ -1,8 +1,9 @@
 """Other tools' files, read where peer masters read them (issue 19, items 7 and 9).
 
 Real third-party FMUs and files under tests/ssp/ (each folder's ORIGIN.md says where from):
-- an FMU whose description fails fmpy's strict validation but runs: a warning, and its results
-  agree with the same FMU driven through fmpy directly;
+- an FMU whose description fails fmpy's strict validation but runs (the project's model of it,
+  its description given the original's defect: tests/helpers.py): a warning, and its results agree
+  with the same FMU driven through fmpy directly;
 - FMI 1.0 FMUs: `validate` and `run` give the same verdict (Co-Simulation runs, Model Exchange does not).
 """
 
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import third_party_scene
 
 import master.api as api
 from master.fmu import FmuError, defects, parse, read_description
@@ -24,33 +26,40 @@ from tests.helpers import ssd
 
 SSP = Path(__file__).parent / "ssp"
 ECS = SSP / "OpenModelica-OMSimulator" / "embrace"
-ECS_SCENE = ECS / "ecs_sw_alone.ssd"
-ECS_FMU = ECS / "resources" / "0002_ECS_SW.fmu"
 IDENTITY = SSP / "Ecos-platform-ecos" / "identity"
 
 
-def test_a_description_peers_accept_is_a_warning_naming_the_defect(caplog):
+def ecs(tmp_path: Path) -> tuple[Path, Path]:
+    """The scene and its FMU, laid out in tmp_path."""
+    folder = third_party_scene(ECS, tmp_path)
+    return folder / "ecs_sw_alone.ssd", folder / "resources" / "0002_ECS_SW.fmu"
+
+
+def test_a_description_peers_accept_is_a_warning_naming_the_defect(tmp_path: Path, caplog):
+    scene, fmu = ecs(tmp_path)
+    with zipfile.ZipFile(fmu) as z:
+        lines = z.read("modelDescription.xml").decode().splitlines()
+    line = 1 + next(i for i, text in enumerate(lines) if 'name="Input.Aircraft_State"' in text)
     with caplog.at_level(logging.WARNING, logger="master"):
-        assert validate(ECS_SCENE) == []
+        assert validate(scene) == []
     (warning,) = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert warning.startswith(
-        f'{ECS_SCENE}:11: ssd:Component "ecs_sw": modelDescription.xml of 0002_ECS_SW.fmu:'
-    )
-    assert 'variable "Input.Aircraft_State" (line 52) is of type Enumeration' in warning
+    assert warning.startswith(f'{scene}:11: ssd:Component "ecs_sw": modelDescription.xml of 0002_ECS_SW.fmu:')
+    assert f'variable "Input.Aircraft_State" (line {line}) is of type Enumeration' in warning
 
 
 def test_that_fmu_runs_as_fmpy_alone_runs_it(tmp_path: Path):
     # The peer: the same FMU driven through fmpy, with the values the scene's stimuli give at each
     # communication point (TLiquid a ramp 250 -> 350 over [0, 2] s, Aircraft_State 4 from 1 s).
-    result = api.run(ECS_SCENE, output=tmp_path / "ecs.csv").data
+    ecs_scene, ecs_fmu = ecs(tmp_path)
+    result = api.run(ecs_scene, output=tmp_path / "ecs.csv").data
     from fmpy import extract
     from fmpy.fmi2 import FMU2Slave
 
-    md = read_description(ECS_FMU)
+    md = read_description(ecs_fmu)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     slave = FMU2Slave(
         guid=md.guid,
-        unzipDirectory=extract(str(ECS_FMU), str(tmp_path / "unzipped")),
+        unzipDirectory=extract(str(ecs_fmu), str(tmp_path / "unzipped")),
         modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName="peer",
     )
@@ -74,17 +83,35 @@ def test_that_fmu_runs_as_fmpy_alone_runs_it(tmp_path: Path):
     assert len(set(expected)) > 3  # the output follows its inputs: the comparison means something
 
 
+def test_that_fmu_computes_what_the_originals_sources_say(tmp_path: Path):
+    # OpenSW.c and OpenSW_data.c of the original: a PI controller with anti-windup sampled every
+    # 1/30 s (three samples per 0.1 s step here, the inputs held), the output that of the last sample.
+    ecs_scene, _ = ecs(tmp_path)
+    got = api.run(ecs_scene, output=tmp_path / "ecs.csv").data["ecs_sw.TCoolingPack"][1:]
+    ts, integral, windup, expected = 1 / 30, 0.0, 0.0, []
+    for k in range(20):
+        e = 293.0 - (250 + 50 * k * 0.1)
+        for _ in range(3):
+            v = 5.0 * e + (integral + 1.0 * (e + windup) * ts)
+            sat = min(200.0, max(v, -200.0))
+            integral, windup = integral + 1.0 * (e + windup) * ts, sat - v
+        expected.append(sat + 293.0 if k >= 10 else 313.0)
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-9)
+    assert min(expected) == 93.0  # saturated at the lower limit: the anti-windup path is covered
+
+
 def test_a_description_with_a_refused_defect_stays_refused_in_one_line(tmp_path: Path):
-    # The real FMU with the start value of its input removed: FMI requires one (kept a refusal).
+    # The FMU with the start value of its input removed: FMI requires one (kept a refusal).
+    ecs_scene, ecs_fmu = ecs(tmp_path)
     broken = tmp_path / "nostart.fmu"
-    with zipfile.ZipFile(ECS_FMU) as src, zipfile.ZipFile(broken, "w") as dst:
+    with zipfile.ZipFile(ecs_fmu) as src, zipfile.ZipFile(broken, "w") as dst:
         for item in src.infolist():
             data = src.read(item)
             if item.filename == "modelDescription.xml":
                 data = data.replace(b'<Real start="0"/>', b"<Real/>", 1)
             dst.writestr(item, data)
     scene = tmp_path / "scene.ssd"
-    scene.write_text(ECS_SCENE.read_text().replace("resources/0002_ECS_SW.fmu", "nostart.fmu"))
+    scene.write_text(ecs_scene.read_text().replace("resources/0002_ECS_SW.fmu", "nostart.fmu"))
     problems = validate(scene)
     assert len(problems) >= 1
     first = str(problems[0])
@@ -159,14 +186,15 @@ def test_fmi_1_0_validate_and_run_agree(tmp_path: Path):
 
 
 def test_an_fmu_without_a_binary_for_this_platform_is_refused_by_validate(tmp_path: Path):
-    # The real FMU without its linux64 binary: `run` could not load it, so `validate` says so.
+    # The FMU without its linux64 binary: `run` could not load it, so `validate` says so.
+    ecs_scene, ecs_fmu = ecs(tmp_path)
     stripped = tmp_path / "nobinary.fmu"
-    with zipfile.ZipFile(ECS_FMU) as src, zipfile.ZipFile(stripped, "w") as dst:
+    with zipfile.ZipFile(ecs_fmu) as src, zipfile.ZipFile(stripped, "w") as dst:
         for item in src.infolist():
             if not item.filename.startswith("binaries/"):
                 dst.writestr(item, src.read(item))
     scene = tmp_path / "scene.ssd"
-    scene.write_text(ECS_SCENE.read_text().replace("resources/0002_ECS_SW.fmu", "nobinary.fmu"))
+    scene.write_text(ecs_scene.read_text().replace("resources/0002_ECS_SW.fmu", "nobinary.fmu"))
     problems = validate(scene)
     assert len(problems) == 1
     assert "nobinary.fmu: no binary for this platform" in problems[0].message

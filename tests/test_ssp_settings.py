@@ -2,9 +2,9 @@
 SSP 1.0 and 2.0 alike.  The macro step then comes from --macro-step, another tool's step hint in the
 file, or the FMUs' own DefaultExperiment stepSize; --stop-time supplies a missing stopTime.
 
-Third-party material: tests/ssp/OpenModelica-OMSimulator/* (see each ORIGIN.md), real FMUs with
-Linux binaries (Modelica.Blocks.Math.Add and .Gain exported by OpenModelica, DefaultExperiment
-stepSize 0.002 s)."""
+Third-party material: tests/ssp/OpenModelica-OMSimulator/* (see each ORIGIN.md), laid out with the
+project's FMUs of the same interface as the ones they name (Modelica.Blocks.Math.Add and .Gain as
+OpenModelica exports them, DefaultExperiment stepSize 0.002 s; tests/helpers.py)."""
 
 import subprocess
 import sys
@@ -13,15 +13,25 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
+from helpers import third_party_scene
 
 from master.recorder import read_csv
 from master.scenario import load, validate
 
 OMS = Path(__file__).parent / "ssp" / "OpenModelica-OMSimulator"
-LINEAR = OMS / "LinearTransformation" / "SystemStructure.ssd"  # SSP 2.0, stopTime 1, no step
-TOPLEVEL = OMS / "toplevelparameter1" / "SystemStructure.ssd"  # SSP 1.0, OMSimulator step hint
-ADD = OMS / "LinearTransformation" / "resources" / "Add.fmu"  # y = k1 u1 + k2 u2
-GAIN = OMS / "LinearTransformation" / "resources" / "Gain.fmu"  # y = k u
+LINEAR = "LinearTransformation"  # SSP 2.0, stopTime 1, no step
+TOPLEVEL = "toplevelparameter1"  # SSP 1.0, OMSimulator step hint
+
+
+def laid_out(tmp_path: Path, name: str) -> Path:
+    """The SystemStructure.ssd of OMSimulator's scene `name`, with its FMUs, in tmp_path."""
+    return third_party_scene(OMS / name, tmp_path) / "SystemStructure.ssd"
+
+
+def gain_and_add(tmp_path: Path) -> tuple[Path, Path]:
+    """The FMUs of LinearTransformation: Gain (y = k u) and Add (y = k1 u1 + k2 u2)."""
+    resources = laid_out(tmp_path, LINEAR).parent / "resources"
+    return resources / "Gain.fmu", resources / "Add.fmu"
 
 
 def master(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
@@ -37,10 +47,12 @@ def scene(
     system_annotation: str = "",
     gain_annotation: str = "",
     name: str = "add-gain",
-    sources: tuple[str, str] = (str(GAIN), str(ADD)),
+    sources: tuple[str, str] | None = None,
 ) -> Path:
     """Gain1 (u = 4, k = 2.5) drives Add1.u1 (k1 = 0.5, u2 = 1, k2 = 3): Add1.y = 0.5 * 10 + 3 * 1 = 8,
     exactly, from the first macro step on.  Written as another tool would: no settings annotation."""
+    if sources is None:
+        sources = tuple(str(f) for f in gain_and_add(tmp_path))
     path = tmp_path / f"{name}.ssd"
     path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="{version}" name="add-gain"
@@ -211,8 +223,9 @@ def test_cli_runs_an_ssp_2_0_archive_without_our_annotation(tmp_path):
     archive = tmp_path / "add-gain.ssp"
     with zipfile.ZipFile(archive, "w") as z:
         z.write(ssd, "SystemStructure.ssd")
-        z.write(GAIN, "resources/Gain.fmu")
-        z.write(ADD, "resources/Add.fmu")
+        gain, add = gain_and_add(tmp_path)
+        z.write(gain, "resources/Gain.fmu")
+        z.write(add, "resources/Add.fmu")
     out = tmp_path / "out.csv"
     r = master("run", str(archive), "--stop-time", "0.01", "--macro-step", "0.01", "-o", str(out), "-q")
     assert r.returncode == 0, r.stderr
@@ -230,10 +243,10 @@ THEIRS = {
 }
 
 
-@pytest.mark.parametrize("path", list(THEIRS), ids=lambda p: p.parent.name)
-def test_third_party_files_need_neither_our_annotation_nor_our_ssp_version(path):
-    left = [p.message for p in validate(path)]
-    assert all(THEIRS[path] in m for m in left), left
+@pytest.mark.parametrize("name", list(THEIRS))
+def test_third_party_files_need_neither_our_annotation_nor_our_ssp_version(tmp_path, name):
+    left = [p.message for p in validate(laid_out(tmp_path, name))]
+    assert all(THEIRS[name] in m for m in left), left
 
 
 def waits_for_the_rest(path: Path) -> None:
@@ -244,9 +257,10 @@ def waits_for_the_rest(path: Path) -> None:
 def test_cli_runs_the_omsimulator_ssp_2_0_file(tmp_path):
     """SSP 2.0, no annotation: macro step 0.002 s from the FMUs, stopTime 1 from the file.
     Every input starts at 0 and every gain is 1, so Add1.y = 1 * (2 * 0 + 3) + 1 * 0 = 3."""
-    waits_for_the_rest(LINEAR)
+    path = laid_out(tmp_path, LINEAR)
+    waits_for_the_rest(path)
     out = tmp_path / "out.csv"
-    r = master("run", str(LINEAR), "-o", str(out), "-q")
+    r = master("run", str(path), "-o", str(out), "-q")
     assert r.returncode == 0, r.stderr
     data = read_csv(out)
     assert data["time"][-1] == pytest.approx(1.0) and len(data) == 501
@@ -257,9 +271,10 @@ def test_cli_runs_the_omsimulator_ssp_1_0_file(tmp_path):
     """SSP 1.0 with OMSimulator's FixedStepMaster 0.001 s and stopTime 1.  addP.y = k1 u1 + k2 u2,
     where the system's parameter set (k1 = -200, k2 = -300) beats the component's (10, 20) as SSP
     and OMSimulator have it: with u1 = 0.5 and u2 = 2, y = -100 - 600 = -700."""
-    waits_for_the_rest(TOPLEVEL)
+    path = laid_out(tmp_path, TOPLEVEL)
+    waits_for_the_rest(path)
     out = tmp_path / "out.csv"
-    r = master("run", str(TOPLEVEL), "-o", str(out), "-q", "--set", "addP.u1=0.5", "--set", "addP.u2=2")
+    r = master("run", str(path), "-o", str(out), "-q", "--set", "addP.u1=0.5", "--set", "addP.u2=2")
     assert r.returncode == 0, r.stderr
     data = read_csv(out)
     assert data["time"][-1] == pytest.approx(1.0) and len(data) == 1001

@@ -3,7 +3,8 @@ every backend: ssc:LinearTransformation, unit conversion through the file's ssd:
 Boolean, Integer and Enumeration mapping transformations.
 
 Real third-party scenes: libcosim's linear transformation test and OMSimulator's
-LinearTransformation system (tests/ssp/*/ORIGIN.md), checked against the exact value of the
+LinearTransformation system (tests/ssp/*/ORIGIN.md; laid out with the project's FMUs of its FMUs'
+interface), checked against the exact value of the
 transformation and against OMSimulator's own printed result. Files written here cover what those
 scenes do not (unit conversion, mappings), on the project's FMUs (gain: y = K u; discrete;
 alltypes; msd).
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import libcosim_last_values, run_everywhere
+from helpers import libcosim_last_values, run_everywhere, third_party_scene
 
 import master.api as api
 from master.fmubuild import fmu_path
@@ -67,10 +68,11 @@ def test_the_runnable_copies_keep_the_originals_as_origin_md_says():
 
 
 @pytest.mark.parametrize("u, u1", [(None, 3.0), ("1.5", 6.0), ("-0.25", 2.5)])
-def test_omsimulator_linear_transformation_scene(u, u1):
+def test_omsimulator_linear_transformation_scene(tmp_path, u, u1):
     """Gain1.y (= k u, k = 1) -> Add1.u1 through factor 2, offset 3; Add1.y = k1 u1 + k2 u2 with
     k1 = k2 = 1 and u2 = 0. OMSimulator prints Add1.u1 = 3.0 after its run (Gain1.u = 0)."""
-    sc = api.load_scenario(OMS / "with-settings.ssd", {"Gain1.u": u} if u else None)
+    scene = third_party_scene(OMS, tmp_path) / "with-settings.ssd"
+    sc = api.load_scenario(scene, {"Gain1.u": u} if u else None)
     sc = replace(sc, record=(("Gain1", "y"), ("Add1", "u1"), ("Add1", "y")))
     d = run_everywhere(sc)
     assert np.array_equal(d["Add1.u1"], 2.0 * d["Gain1.y"] + 3.0)

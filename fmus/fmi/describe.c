@@ -79,7 +79,9 @@ int main(void) {
     }
     printf("],\n\"has_initialize\": %s, \"has_jacobian\": %s, \"has_outputs\": %s,\n",
            m->initialize ? "true" : "false", m->jacobian ? "true" : "false", m->outputs ? "true" : "false");
-    printf("\"variables\": [\n");
+    printf("\"default_step_size\": ");
+    json_number(m->default_step_size);
+    printf(",\n\"variables\": [\n");
     for (int i = 0; i < m->n_variables; i++) {
         const Variable *v = &m->variables[i];
         printf("  {\"name\": ");

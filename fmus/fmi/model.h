@@ -110,6 +110,9 @@ typedef struct {
      * `.fmi3_only = 1`: master/fmubuild.py reads it from the source to list FMI 2.0 models). */
     int fmi3_only;
 
+    /* DefaultExperiment stepSize in seconds (written in the model description); 0: none. */
+    double default_step_size;
+
     int n_states;
     const int *state_slots;      /* real slots of the continuous states, in state order */
     const int *derivative_slots; /* real slots of their derivatives, same order */
