@@ -400,17 +400,10 @@ class Reference:
     uncertainty: float = 0.0  # worst scaled change between its last two runs (0: Model Exchange)
 
 
-def reference(
-    scenario: Scenario,
-    grid_step: Fraction | None = None,
-    rtol: float = 1e-10,
-    atol: float = 1e-12,
-    cache_dir: Path | None = CACHE_DIR,
-    cosim_tol: float = 1e-6,
-) -> Trajectory:
-    """The cached reference solution of a loaded scene (see `solve`); raises NotConverged where
-    there is only a best effort."""
-    ref = solve(scenario, grid_step, rtol, atol, cache_dir, cosim_tol)
+def reference(scenario: Scenario, **options) -> Trajectory:
+    """The cached reference solution of a loaded scene (`solve`, with its options); raises
+    NotConverged where there is only a best effort."""
+    ref = solve(scenario, **options)
     if not ref.converged:
         raise NotConverged(f"{scenario.path}: no reference: {ref.what}", ref.trajectory, Convergence((), ()))
     return ref.trajectory
