@@ -27,11 +27,18 @@ from .fmuinfo import (
     stimulus_problem,
     typed,
 )
-from .model import Scenario
+from .model import LOOP_METHODS, Scenario, Scheme
 from .problems import Problem, Problems
-from .settings import MAX_ORDER, interval_problem, limit_problems, ratio_problem, steps_problem
+from .settings import (
+    MAX_ITERATIONS,
+    MAX_ORDER,
+    interval_problem,
+    limit_problems,
+    ratio_problem,
+    steps_problem,
+)
 
-COUPLINGS = ("jacobi", "gauss-seidel")
+COUPLINGS = tuple(Scheme)
 STIMULUS_KINDS = ("step", "table")
 
 At = Callable[[str, str], None]  # at(element, message): report one problem
@@ -125,8 +132,17 @@ def _components(sc: Scenario, at: At) -> None:
         at("coupling", f'"{sc.coupling}" is not a coupling: {" or ".join(COUPLINGS)}')
     # Unlike a file's (settings: a likely mistake there), a Scenario's order under Jacobi is left
     # alone: code that switches a scene's coupling keeps it, and Jacobi steps everyone at once
-    if sc.coupling == "gauss-seidel" and sc.order and sorted(sc.order) != sorted(names):
+    if sc.coupling == Scheme.GAUSS_SEIDEL and sc.order and sorted(sc.order) != sorted(names):
         at("order", f"{list(sc.order)} must list every component once: {names}")
+    if sc.loops.method not in LOOP_METHODS:
+        at("loops", f'method "{sc.loops.method}" is not one of {", ".join(LOOP_METHODS)}')
+    for what, it in (("loops", sc.loops), ("iteration", sc.iteration)):
+        if it is None:
+            continue
+        if not 0 < it.tolerance < 1:
+            at(what, f"tolerance {it.tolerance!r}: between 0 and 1 (relative to 1 + |value|)")
+        if not _whole(it.max_iterations) or not 1 <= it.max_iterations <= MAX_ITERATIONS:
+            at(what, f"max_iterations {it.max_iterations!r}: a whole number in 1..{MAX_ITERATIONS}")
 
 
 def _order_ok(order: object) -> bool:

@@ -7,6 +7,7 @@ Times are exact rationals (fractions.Fraction) so that schedules never drift.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from fractions import Fraction
 from pathlib import Path
 from typing import Literal
@@ -61,6 +62,45 @@ class Connection:
     transformation: Transformation | None = None
 
 
+class Scheme(StrEnum):
+    """Whose samples a component's inputs use within a macro step (the paper's parallel and
+    sequential integration): every source's from the macro step's start, extrapolated (Jacobi), or,
+    in a stepping order, those of sources earlier in it at the macro step's end, interpolated
+    (Gauss-Seidel)."""
+
+    JACOBI = "jacobi"
+    GAUSS_SEIDEL = "gauss-seidel"
+
+
+# how an algebraic loop is solved at a communication point; the index is the kernel's code
+# (kernel.h: MK_LOOP_*, which master.runtime.native checks against these)
+LOOP_METHODS = ("newton", "fixed-point")
+
+
+@dataclass(frozen=True)
+class LoopSolver:
+    """How algebraic loops (outputs that depend directly on inputs around a cycle of components)
+    are solved at each communication point: the loop's coupled signals are iterated (inputs set,
+    outputs read; no step) until every one changes by at most tolerance * (1 + |value|), at most
+    `max_iterations` times. "newton": Newton's method with the Jacobian from directional derivatives
+    (finite differences where a member provides none), reused while it converges well; "fixed-point":
+    Aitken-accelerated fixed-point iteration."""
+
+    method: Literal["newton", "fixed-point"] = "newton"
+    tolerance: float = 1e-10
+    max_iterations: int = 100
+
+
+@dataclass(frozen=True)
+class Iteration:
+    """Iterated macro steps (strong coupling): each macro step repeated from saved FMU states with
+    the input polynomials of the previous sweep's samples until every coupled signal changes by at
+    most tolerance * (1 + |value|), at most `max_iterations` sweeps."""
+
+    tolerance: float = 1e-8
+    max_iterations: int = 20
+
+
 @dataclass(frozen=True)
 class Stimulus:
     """A signal on an input that no component drives.
@@ -85,13 +125,15 @@ class Scenario:
     start_time: Fraction
     stop_time: Fraction
     macro_step: Fraction  # H
-    coupling: Literal["jacobi", "gauss-seidel"] = "jacobi"
+    coupling: Scheme = Scheme.JACOBI
     order: tuple[str, ...] = ()  # Gauss-Seidel: component names in stepping order
     stimuli: tuple[Stimulus, ...] = ()
     record: tuple[tuple[str, str], ...] = ()  # (component, variable); empty: all outputs
     record_interval: Fraction | None = None  # None: every macro step
     # a column per extrapolated connection: its latest coupling error (master.schedule.Plan.columns)
     record_coupling_errors: bool = False
+    loops: LoopSolver = LoopSolver()  # how algebraic loops are solved
+    iteration: Iteration | None = None  # None: each macro step stepped once (explicit coupling)
     # setting ("macro step", "stop time", "COMP communication step" ...) -> where its value came from
     origins: dict[str, str] = field(default_factory=dict, compare=False)
 

@@ -215,6 +215,8 @@ def _read(
         record=_recorded(setup.record, flat),
         record_interval=setup.record_interval,
         record_coupling_errors=setup.record_coupling_errors,
+        loops=setup.loops,
+        iteration=setup.iteration,
         origins={**origins, **setup.origins},
     )
     if stop_time is not None:  # named as the option, as `check` names a stop time set after reading

@@ -24,7 +24,7 @@ from .fmuinfo import (
     stimulus_problem,
     typed,
 )
-from .model import Stimulus
+from .model import Iteration, LoopSolver, Scheme, Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
 from .xmlio import tag
@@ -35,7 +35,7 @@ ANNOTATION_TYPE = "org.multirate-master.settings"
 @dataclass
 class Settings:
     macro_step: Fraction
-    coupling: str = "jacobi"
+    coupling: Scheme = Scheme.JACOBI
     order: tuple[str, ...] = ()
     step_ratio: dict[str, int] = field(default_factory=dict)
     extrapolation_order: dict[str, int] = field(default_factory=dict)
@@ -47,12 +47,15 @@ class Settings:
     record_interval: Fraction | None = None
     record_coupling_errors: bool = False
     stimuli: tuple[Stimulus, ...] = ()
+    loops: LoopSolver = LoopSolver()
+    iteration: Iteration | None = None
     origins: dict[str, str] = field(default_factory=dict)  # setting -> where its value came from
 
 
 INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
 MAX_STEP_RATIO = 100_000  # communication steps of one component per macro step
 MAX_MACRO_STEPS = 10**10  # macro steps of one run
+MAX_ITERATIONS = 10_000  # of a loop solve at one point, or sweeps of one macro step
 MAX_ORDER = 3  # highest extrapolation order (the schema's TExtrapolationOrder)
 
 
@@ -125,7 +128,7 @@ def read(
     if macro <= 0:
         ctx.at(elem, "macroStep must be positive")
         return None
-    s = Settings(macro_step=macro, coupling=elem.get("coupling", "jacobi"))
+    s = Settings(macro_step=macro, coupling=Scheme(elem.get("coupling", Scheme.JACOBI)))
     given = macro_step is not None
     s.origins["macro step"] = "command line (--macro-step)" if given else "mm:Settings macroStep"
     if times is not None:
@@ -142,7 +145,42 @@ def read(
     _connections(ctx, elem, s, set(ctx.driven) | ctx.ends)
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
+    _coupling_iterations(ctx, elem, s)
     return s
+
+
+def _coupling_iterations(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    """mm:Loops and mm:Iteration (their values' forms checked by the schema; defaults: the model's)."""
+    loops = elem.find(tag(NS_MM, "Loops"))
+    if loops is not None:
+        default = LoopSolver()
+        s.loops = LoopSolver(
+            method=loops.get("method", default.method),
+            tolerance=_tolerance(loops, default.tolerance),
+            max_iterations=_iterations(ctx, loops, default.max_iterations),
+        )
+    iteration = elem.find(tag(NS_MM, "Iteration"))
+    if iteration is not None:
+        default = Iteration()
+        s.iteration = Iteration(
+            tolerance=_tolerance(iteration, default.tolerance),
+            max_iterations=_iterations(ctx, iteration, default.max_iterations),
+        )
+
+
+def _tolerance(elem: etree._Element, default: float) -> float:
+    try:
+        return float(elem.get("tolerance", default))
+    except ValueError:  # reported by the schema check
+        return default
+
+
+def _iterations(ctx: Context, elem: etree._Element, default: int) -> int:
+    n = _int(elem.get("maxIterations")) or default
+    if n > MAX_ITERATIONS:
+        ctx.at(elem, f"maxIterations {n}: at most {MAX_ITERATIONS}")
+        return default
+    return n
 
 
 def _limits(ctx: Context, elem: etree._Element, s: Settings, times: tuple[Fraction, Fraction]) -> None:
@@ -288,9 +326,9 @@ def _order(ctx: Context, elem: etree._Element, s: Settings) -> None:
     text = elem.get("order")
     if text is None:
         # Gauss-Seidel without an order: document order of the components
-        s.order = tuple(ctx.comps) if s.coupling == "gauss-seidel" else ()
+        s.order = tuple(ctx.comps) if s.coupling == Scheme.GAUSS_SEIDEL else ()
         return
-    if s.coupling != "gauss-seidel":
+    if s.coupling != Scheme.GAUSS_SEIDEL:
         ctx.at(elem, 'order is only meaningful with coupling="gauss-seidel"')
         return
     names = text.split()
