@@ -16,7 +16,7 @@ from pathlib import Path
 from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
-from master.fmu import FmuError, defects, read_description, variables_of
+from master.fmu import FmuError, defects, output_dependencies, read_description, variables_of
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
@@ -161,12 +161,16 @@ def plan(sc: Scenario) -> Plan:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
         cs = md.coSimulation
+        depends, assumed = output_dependencies(md)
         caps[c.name] = Capability(
             bool(cs.canInterpolateInputs),
             md.fmiVersion,
             bool(cs.canGetAndSetFMUstate),
             bool(cs.canBeInstantiatedOnlyOncePerProcess),
             bool(cs.needsExecutionTool),
+            depends,
+            assumed,
+            bool(cs.providesDirectionalDerivative),
         )
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
