@@ -484,7 +484,7 @@ def _loops(
         derivatives = scalar and all(caps[m].directional_derivatives for m in ranked)
         cycle = next(d for d, scc in zip(described, cycles, strict=True) if {c for c, _ in scc} <= members)
         loops.append(Loop(ranked, unknowns, inputs, tuple(tuple(r) for r in structure), cycle, derivatives))
-    how = {"newton": "Newton's method", "fixed-point": "Aitken-accelerated fixed-point iteration"}
+    how = {"newton": "Newton's method", "fixed-point": "Anderson-accelerated fixed-point iteration"}
     for lp in loops:
         jacobian = "directional derivatives" if lp.derivatives else "finite differences"
         jacobian = f", the Jacobian from {jacobian}" if sc.loops.method == "newton" else ""
