@@ -379,6 +379,19 @@ def validate(
     return list(_validate(Path(path), **_times(stop_time, macro_step)))
 
 
+def loop_notes(
+    path: str | Path,
+    stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
+) -> list[str]:
+    """What a valid scenario's plan says of its algebraic loops and of the FMUs that declare no
+    dependencies there (`master validate` prints them)."""
+    p = plan(load_scenario(path, None, stop_time, macro_step))
+    return [n for n in p.notes if n.startswith("algebraic loop")] + [
+        n for _, n in p.fmu_notes if "declares no dependencies" in n
+    ]
+
+
 def info(
     path: str | Path,
     stop_time: float | str | Fraction | None = None,

@@ -7,6 +7,10 @@ its input, s a table stimulus. Its exact solution at every point is add.y = s / 
 from __future__ import annotations
 
 import dataclasses
+import re
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +18,7 @@ import pytest
 from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
+from master.fmubuild import fmu_path
 from master.scenario.model import LoopSolver
 from master.schedule import EDGE_DECLARED
 
@@ -112,3 +117,61 @@ def test_the_dcmotor_pair_runs_with_consistent_outputs_at_every_point(backend):
     d = api.run(sc, backend=backend, record=names).data
     assert np.allclose(d["left.w_ext1"], d["right.w1"], rtol=1e-9, atol=1e-12)
     assert np.allclose(d["right.w_ext1"], d["left.w1"], rtol=1e-9, atol=1e-12)
+
+
+def without_dependencies(fmu: Path, to: Path) -> Path:
+    """A copy of `fmu` whose description declares no output dependencies (as pythonfmu and 20-sim
+    write theirs): FMI then takes every output to depend on every input."""
+    with zipfile.ZipFile(fmu) as z:
+        members = {item.filename: z.read(item) for item in z.infolist()}
+    text = members["modelDescription.xml"].decode()
+    stripped, n = re.subn(r'\s+dependencies(Kind)?="[^"]*"', "", text)
+    assert n, "the built FMU declares no dependencies to strip"
+    members["modelDescription.xml"] = stripped.encode()
+    with zipfile.ZipFile(to, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return to
+
+
+def feedback(tmp_path: Path, declared: bool):
+    """msd's position fed back as its force through a gain: a loop only if msd declares nothing."""
+    msd = fmu_path("msd") if declared else without_dependencies(fmu_path("msd"), tmp_path / "msd_open.fmu")
+    path = ssd(
+        tmp_path / f"feedback_{declared}.ssd",
+        {"body": str(msd), "k": "blocks_gain"},
+        [("body", "x", "k", "u"), ("k", "y", "body", "F")],
+        settings='<mm:Record><mm:Variable component="body" name="x"/><mm:Variable component="body" name="F"/>'
+        '<mm:Variable component="k" name="y"/></mm:Record>',
+        macro_step="0.01",
+    )
+    return api.load_scenario(path, {"k.k": "-4.0", "body.x0": "1.0"})
+
+
+def test_an_fmu_that_merely_omits_dependencies_costs_one_probe_and_gives_the_same_bits(tmp_path):
+    declared, assumed = feedback(tmp_path, True), feedback(tmp_path, False)
+    assert not api.plan(declared).loops
+    p = api.plan(assumed)
+    (lp,) = p.loops
+    assert lp.assumed
+    (note,) = [n for _, n in p.fmu_notes if "declares no dependencies" in n]
+    assert "msd_open.fmu" in note and "x" in note
+    reference = api.run(declared, backend="in-process").data
+    for backend in BACKENDS:
+        res = api.run(assumed, backend=backend)
+        for name in reference.dtype.names:
+            assert np.array_equal(res.data[name], reference[name]), (backend, name)
+        (stats,) = res.summary.loops.values()
+        assert stats["sequential"] == 1  # the probe found msd.x independent of F: no iteration
+        assert stats["jacobians"] == 1 and stats["most"] == 1
+
+
+def test_validate_prints_the_notes_on_assumed_dependencies_once_per_fmu(tmp_path):
+    scene = feedback(tmp_path, False).path
+    out = subprocess.run(
+        [sys.executable, "-m", "master", "validate", str(scene)], capture_output=True, text=True, check=True
+    ).stdout
+    assert f"{scene}: ok" in out
+    notes = [line for line in out.splitlines() if "declares no dependencies" in line]
+    assert len(notes) == 1 and "msd_open.fmu" in notes[0]
+    assert any("algebraic loop" in line for line in out.splitlines())

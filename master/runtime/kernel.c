@@ -970,7 +970,8 @@ static int32_t loop_evaluate(mk_kernel *k, mk_loop *L, int64_t n, const double *
 }
 
 /* A loop the probe found without cycle: each member once in `order` (its sources final before it),
- * then the inputs again of those driven by members after them (whose outputs do not depend on them). */
+ * then again those driven by members after them (whose outputs do not depend on those inputs: only
+ * the inputs, and the inputs a history holds, change). */
 static int32_t loop_sequence(mk_kernel *k, mk_loop *L, int64_t n) {
     int32_t code = MK_DONE;
     for (int32_t p = 0; code == MK_DONE && p < L->n_members; p++) {
@@ -978,7 +979,10 @@ static int32_t loop_sequence(mk_kernel *k, mk_loop *L, int64_t n) {
         if (code == MK_DONE) code = read_linked(k, L->members[L->order[p]], n);
     }
     for (int32_t p = 0; code == MK_DONE && p < L->n_members; p++)
-        if (L->reset[L->order[p]]) code = set_linked(k, L->members[L->order[p]], n);
+        if (L->reset[L->order[p]]) { /* read again too: a recorded input may lie in its history */
+            code = set_linked(k, L->members[L->order[p]], n);
+            if (code == MK_DONE) code = read_linked(k, L->members[L->order[p]], n);
+        }
     L->stats[MK_LOOP_EVALUATIONS]++;
     L->stats[MK_LOOP_ITERATIONS]++;
     if (L->stats[MK_LOOP_MOST] < 1) L->stats[MK_LOOP_MOST] = 1;
