@@ -201,3 +201,23 @@ def test_a_nonlinear_loop_reaches_the_root_at_every_point(tmp_path, method):
     (stats,) = res.summary.loops.values()
     if method == "newton":  # refreshed where a kept Jacobian slows it: Newton's rate
         assert stats["jacobians"] > 1 and stats["most"] <= 8
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        '<mm:Component name="g1" stepRatio="4"/>',  # members at different rates: solved at common points
+        '<mm:Component name="add" extrapolationOrder="2"/>',  # start-up sweeps, then the loop solved
+    ],
+)
+def test_the_ring_is_exact_at_the_macro_steps_whatever_the_rates_and_orders(tmp_path, settings):
+    path = ssd(
+        tmp_path / "ring.ssd",
+        {"add": "blocks_add", "g1": "blocks_gain", "g2": "blocks_gain"},
+        RING,
+        settings=settings + STIMULUS + '<mm:Loops tolerance="1e-13"/>',
+        stop="2",
+    )
+    sc = api.load_scenario(path, {"g1.k": "0.5", "g2.k": "-1.0"})
+    d = run_everywhere(sc)
+    assert np.allclose(d["add.y"], stimulus(d["time"]) / 1.5, rtol=1e-12, atol=1e-12)
