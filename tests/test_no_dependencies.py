@@ -73,7 +73,7 @@ class Controller(Fmi2Slave):
         return True
 '''
 
-H, STOP = 0.1, 3.0  # s
+H, STOP = 0.1, 10.0  # s
 
 
 def declare_dependencies(fmu: Path, dependencies: dict[str, tuple[str, ...]]) -> None:
@@ -104,8 +104,11 @@ def validate_cli(scene: Path, *args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=120)  # fmt: skip
 
 
-def notes_naming(output: str, name: str) -> list[str]:
-    return [line for line in output.splitlines() if name in line and "dependencies" in line]
+def notes_on(output: str, fmu: str) -> list[str]:
+    """validate's notes that the FMU file declares no dependencies."""
+    return [
+        line for line in output.splitlines() if "note:" in line and f"{fmu} declares no dependencies" in line
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -135,8 +138,8 @@ def test_pythonfmu_loop_validates_with_a_note_per_fmu(pi_loop):
     out = done.stdout + done.stderr
     assert done.returncode == 0, out
     assert "error" not in out.lower() and "algebraic loop through direct feedthrough" not in out
-    for fmu in ("Plant", "Controller"):
-        assert len(notes_naming(out, fmu)) == 1, out
+    for fmu in ("Plant.fmu", "Controller.fmu"):
+        assert len(notes_on(out, fmu)) == 1, out
 
 
 def test_pythonfmu_loop_runs_as_with_the_dependencies_declared(pi_loop):
@@ -163,7 +166,7 @@ def test_pythonfmu_loop_is_the_recurrence_of_the_scheme(pi_loop):
         np.testing.assert_allclose(d["time"], np.arange(len(ys)) * H, rtol=0, atol=1e-12)
         np.testing.assert_allclose(d["plant.y"], ys, rtol=1e-15, atol=1e-15, err_msg=key)
         np.testing.assert_allclose(d["ctrl.u"], us, rtol=1e-15, atol=1e-15, err_msg=key)
-    assert abs(ys[-1] - r) < 0.05  # the integral action brings y to the set point
+    assert abs(ys[-1] - r) < 2e-3 and abs(us[-1] - r) < 2e-3  # the integral action: y = u = r at rest
 
 
 # ecos's quarter truck: chassis, wheel and road (20-sim bond graphs) coupled by force and velocity;
@@ -204,8 +207,8 @@ def test_quarter_truck_validates_with_a_note_per_fmu(truck):
     out = done.stdout + done.stderr
     assert done.returncode == 0, out
     assert "algebraic loop through direct feedthrough" not in out
-    for fmu in ("chassis", "wheel", "ground"):
-        assert notes_naming(out, fmu), out
+    for fmu in ("chassis.fmu", "wheel.fmu", "ground.fmu"):
+        assert len(notes_on(out, fmu)) == 1, out
 
 
 def test_quarter_truck_as_given_stays_in_static_equilibrium(truck):
