@@ -7,6 +7,7 @@ their true dependencies declared.  Units: s, m, m/s, N, kg.
 
 from __future__ import annotations
 
+import ctypes
 import subprocess
 import sys
 import zipfile
@@ -19,6 +20,7 @@ from lxml import etree
 from test_run import build_pythonfmu
 
 import master.api as api
+from master.fmubuild import fmu_path
 
 QUARTER_TRUCK = Path(__file__).parent / "ssp" / "Ecos-platform-ecos" / "quarter_truck"
 
@@ -182,6 +184,85 @@ TRUE_DEPENDENCIES = {
     "wheel.fmu": {"p.e": ("p.f",), "p1.f": (), "zWheel": ()},
     "ground.fmu": {"p.f": (), "zGround": ()},
 }
+
+
+def original_rates(model: str, p: dict[str, float], x: list[float], u: dict[str, float], t: float):
+    """The 20-sim exports' XXCalculateDynamic and XXCalculateOutput (sources/xxmodel.c of each
+    original FMU) in their order of evaluation: the rates of the states and the outputs."""
+    if model == "qt_chassis":  # x: C.zDelta, I1.moment, I1.zChassis, QSensor.q
+        v = x[1] / p["I1.mChassis"]
+        rate_c = u["p.f"] - v
+        effort = p["R.dChassis"] * rate_c + x[0] * p["C.kChassis"]
+        return [rate_c, effort + -p["Se1.mChassis"] * G, v, v], {"p.e": effort, "zChassis": x[3]}
+    if model == "qt_wheel":  # x: C.zDelta, I.moment, I.zWheel, QSensor1.q
+        v = x[1] / p["I.mWheel"]
+        rate_c = u["p.f"] - v
+        effort = x[0] * p["C.kWheel"] + p["R.dWheel"] * rate_c
+        return [rate_c, (effort + -p["Se.mWheel"] * G) - u["p1.e"], v, v], {
+            "p.e": effort,
+            "p1.f": v,
+            "zWheel": x[3],
+        }
+    # qt_ground, x: Derivative.rate_int; its input at initialization was 0 (the step lies ahead)
+    step = p["Step.amplitude"] * (0.0 if t < p["Step.start_time"] else 1.0)
+    out = 2.0 * 3.14159265358979 * p["Derivative.fh"] * (step - 0.0) + x[0]
+    return [-2.0 * 3.14159265358979 * p["Derivative.fh"] * out], {"p.f": out, "zGround": step}
+
+
+@pytest.mark.parametrize(
+    "model, parameters, inputs",
+    [
+        ("qt_chassis", {"C.mChassis": 380.0, "C.kChassis": 14000.0, "I1.mChassis": 410.0, "R.dChassis": 900.0,
+                        "Se1.mChassis": 390.0}, {"p.f": 0.3}),
+        ("qt_wheel", {"C.mWheel": 42.0, "C.mChassis": 380.0, "C.kWheel": 140000.0, "I.mWheel": 41.0,
+                      "R.dWheel": 25.0, "Se.mWheel": 43.0}, {"p.f": -0.2, "p1.e": 3900.0}),
+        ("qt_ground", {"Derivative.fh": 8.0, "Step.amplitude": 0.05, "Step.start_time": 0.7,
+                       "Derivative.initial": 0.01}, {"p.e": 4000.0}),
+    ],
+)  # fmt: skip
+def test_quarter_truck_fmus_have_the_originals_equations(model, parameters, inputs, tmp_path):
+    """Each project FMU (Model Exchange) against the original's equations at states and inputs away
+    from equilibrium, every parameter off its default; and its initial state: the springs
+    compressed by the weights they carry (C.zDeltaInit computed so, as the original does)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Model
+
+    path = fmu_path(model)
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=extract(str(path), unzipdir=str(tmp_path)),
+                    modelIdentifier=md.modelExchange.modelIdentifier, instanceName=model)  # fmt: skip
+    fmu.instantiate()
+    try:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.setReal([vr[n] for n in parameters], list(parameters.values()))
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        n = md.numberOfContinuousStates
+        start = np.zeros(n)
+        fmu.getContinuousStates(start.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), n)
+        p = {v.name: float(v.start) for v in md.modelVariables if v.causality == "parameter" and v.start}
+        p.update(parameters)
+        if model == "qt_chassis":
+            expected_start = [p["C.mChassis"] * G / p["C.kChassis"], 0.0, 1.0, 1.0]
+        elif model == "qt_wheel":
+            expected_start = [(p["C.mChassis"] + p["C.mWheel"]) * G / p["C.kWheel"], 0.0, 0.5, 0.5]
+        else:
+            expected_start = [p["Derivative.initial"]]
+        np.testing.assert_allclose(start, expected_start, rtol=1e-15)
+        fmu.enterContinuousTimeMode()
+        fmu.setReal([vr[n] for n in inputs], list(inputs.values()))
+        for t in (0.5, 0.9):  # the ground's step at 0.7 s lies between
+            x = np.array([0.02, 12.0, 0.55, 0.56][:n]) if n > 1 else np.array([-0.1])
+            fmu.setTime(t)
+            fmu.setContinuousStates(x.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), n)
+            dx = np.zeros(n)
+            fmu.getDerivatives(dx.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), n)
+            rates, outputs = original_rates(model, p, list(x), inputs, t)
+            np.testing.assert_allclose(dx, rates, rtol=1e-14, atol=1e-14)
+            assert fmu.getReal([vr[o] for o in outputs]) == pytest.approx(list(outputs.values()), rel=1e-14)
+    finally:
+        fmu.freeInstance()
 
 
 @pytest.fixture
