@@ -175,3 +175,49 @@ def test_validate_prints_the_notes_on_assumed_dependencies_once_per_fmu(tmp_path
     notes = [line for line in out.splitlines() if "declares no dependencies" in line]
     assert len(notes) == 1 and "msd_open.fmu" in notes[0]
     assert any("algebraic loop" in line for line in out.splitlines())
+
+
+def cubic_root(s: float, a: float, b: float) -> float:
+    """The real y of a y^3 + (1 + b) y = s (one: a, 1 + b > 0)."""
+    roots = np.roots([a, 0.0, 1.0 + b, -s])
+    return float(roots[np.argmin(abs(roots.imag))].real)
+
+
+@pytest.mark.parametrize("method", ["newton", "fixed-point"])
+def test_a_nonlinear_loop_reaches_the_root_at_every_point(tmp_path, method):
+    """add.y = s(t) + c.y, c.y = -(a u^3 + b u) with u = add.y: y solves a y^3 + (1 + b) y = s."""
+    path = ssd(
+        tmp_path / "cubic.ssd",
+        {"add": "blocks_add", "c": "cubic"},
+        [("add", "y", "c", "u"), ("c", "y", "add", "u2")],
+        settings=STIMULUS + f'<mm:Loops method="{method}" tolerance="1e-12"/>',
+        stop="2",
+    )
+    sc = api.load_scenario(path, {"c.a": "-2.0", "c.b": "-0.5", "add.k2": "1.0"})
+    res = api.run(sc, backend="in-process")
+    d = res.data
+    exact = [cubic_root(s, 2.0, 0.5) for s in stimulus(d["time"])]
+    assert np.allclose(d["add.y"], exact, rtol=1e-10, atol=1e-10)
+    (stats,) = res.summary.loops.values()
+    if method == "newton":  # refreshed where a kept Jacobian slows it: Newton's rate
+        assert stats["jacobians"] > 1 and stats["most"] <= 8
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        '<mm:Component name="g1" stepRatio="4"/>',  # members at different rates: solved at common points
+        '<mm:Component name="add" extrapolationOrder="2"/>',  # start-up sweeps, then the loop solved
+    ],
+)
+def test_the_ring_is_exact_at_the_macro_steps_whatever_the_rates_and_orders(tmp_path, settings):
+    path = ssd(
+        tmp_path / "ring.ssd",
+        {"add": "blocks_add", "g1": "blocks_gain", "g2": "blocks_gain"},
+        RING,
+        settings=settings + STIMULUS + '<mm:Loops tolerance="1e-13"/>',
+        stop="2",
+    )
+    sc = api.load_scenario(path, {"g1.k": "0.5", "g2.k": "-1.0"})
+    d = run_everywhere(sc)
+    assert np.allclose(d["add.y"], stimulus(d["time"]) / 1.5, rtol=1e-12, atol=1e-12)

@@ -958,12 +958,18 @@ static double *unknown_at(const mk_kernel *k, const mk_loop *L, int32_t i, int64
 }
 
 /* fx = F(x): x into the histories, every member's linked inputs set from them, then every member's
- * outputs read. */
+ * outputs read (Newton's F); or, for the fixed point, member by member in turn, each reading the
+ * samples its predecessors just read (Gauss-Seidel: F then depends on the unknowns that drive
+ * earlier members alone, a ring on one). */
 static int32_t loop_evaluate(mk_kernel *k, mk_loop *L, int64_t n, const double *x, double *fx) {
     int32_t code = MK_DONE;
+    const bool in_turn = L->method == MK_LOOP_FIXED_POINT;
     for (int32_t i = 0; i < L->n_unknowns; i++) *unknown_at(k, L, i, n) = x[i];
-    for (int32_t m = 0; code == MK_DONE && m < L->n_members; m++) code = set_linked(k, L->members[m], n);
-    for (int32_t m = 0; code == MK_DONE && m < L->n_members; m++) code = read_linked(k, L->members[m], n);
+    for (int32_t m = 0; code == MK_DONE && m < L->n_members; m++) {
+        code = set_linked(k, L->members[m], n);
+        if (in_turn && code == MK_DONE) code = read_linked(k, L->members[m], n);
+    }
+    for (int32_t m = 0; !in_turn && code == MK_DONE && m < L->n_members; m++) code = read_linked(k, L->members[m], n);
     for (int32_t i = 0; i < L->n_unknowns; i++) fx[i] = *unknown_at(k, L, i, n);
     L->stats[MK_LOOP_EVALUATIONS]++;
     return code;
@@ -1209,8 +1215,9 @@ static int32_t solve_loop(mk_kernel *k, int32_t l, int64_t n) {
         }
         memcpy(dx, r, sizeof(double) * (size_t)N);
         if (L->method == MK_LOOP_NEWTON) {
-            /* the Jacobian kept from earlier points while the residual falls fast enough */
-            if (have_jacobian || !L->fresh || (it > 0 && !(residual <= 0.5 * previous))) {
+            /* the Jacobian kept from earlier points while the residual falls fast (a hundredth
+             * per step at least: slower is a stale Jacobian, a few iterations of Newton's rate) */
+            if (have_jacobian || !L->fresh || (it > 0 && !(residual <= 0.01 * previous))) {
                 if (!have_jacobian && (code = loop_jacobian(k, L, n, x, fx, jac))) return code;
                 have_jacobian = false;
                 for (int32_t i = 0; i < N; i++)
