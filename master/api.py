@@ -16,7 +16,14 @@ from pathlib import Path
 from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
-from master.fmu import FmuError, defects, output_dependencies, read_description, variables_of
+from master.fmu import (
+    FmuError,
+    defects,
+    output_dependencies,
+    read_description,
+    runs_as_model_exchange,
+    variables_of,
+)
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
@@ -160,10 +167,11 @@ def plan(sc: Scenario) -> Plan:
         except FmuError as e:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
-        cs = md.coSimulation
+        me = runs_as_model_exchange(md, c.model_exchange is not None)
+        cs = md.modelExchange if me else md.coSimulation  # the interface it is instantiated for
         depends, assumed = output_dependencies(md)
         caps[c.name] = Capability(
-            bool(cs.canInterpolateInputs),
+            bool(getattr(cs, "canInterpolateInputs", False)),
             md.fmiVersion,
             bool(cs.canGetAndSetFMUstate),
             bool(cs.canBeInstantiatedOnlyOncePerProcess),
@@ -171,6 +179,7 @@ def plan(sc: Scenario) -> Plan:
             depends,
             assumed,
             bool(cs.providesDirectionalDerivative),
+            me,
         )
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:

@@ -1,0 +1,288 @@
+"""Model Exchange components: the master integrates the FMU's states in the kernel with the shared
+solvers of fmus/solvers, its inputs the extrapolation polynomials at every stage time.
+
+The same code and arithmetic as a Co-Simulation FMU of the project that interpolates its inputs
+(one doStep per macro step, the input polynomials at its stage times), so msd run as Model Exchange
+equals msd run as Co-Simulation with the same method and internal step, bit for bit, in every
+backend; the methods keep their orders on FMUs with closed-form solutions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import zipfile
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import run_everywhere, ssd
+
+import master.api as api
+from master.backends.component import SimulationError
+from master.fmubuild import fmu_path
+from master.scenario import ScenarioError
+from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario
+from master.scenario.writer import write_settings
+
+H = Fraction(1, 100)  # macro step, s
+SUBSTEPS = 4  # internal steps per macro step
+
+
+def oscillator(solver: str, model_exchange: bool) -> Scenario:
+    """The two-mass oscillator: mass 1 (msd, inputs F) integrated by `solver` in SUBSTEPS internal
+    steps per macro step, either as Model Exchange by the master or as Co-Simulation by the FMU
+    with its inputs as polynomials; mass 2 with the coupling (msd, Co-Simulation)."""
+    msd = fmu_path("msd")
+    me = ModelExchange(solver, H / SUBSTEPS) if model_exchange else None
+    mass1 = Component(
+        "mass1",
+        msd,
+        parameters={"solver": SOLVERS.index(solver) + 1, "internal_step": float(H / SUBSTEPS), "x0": 1.0},
+        extrapolation_order=2,
+        interpolate_inputs=not model_exchange,
+        model_exchange=me,
+    )
+    mass2 = Component("mass2", msd, parameters={"cc": 1.0, "dc": 1.0}, extrapolation_order=2)
+    connections = (
+        Connection("mass2", "F_c", "mass1", "F"),
+        Connection("mass1", "x", "mass2", "x_in"),
+        Connection("mass1", "v", "mass2", "v_in"),
+    )
+    path = Path("oscillator.ssd")
+    return Scenario(path, "oscillator", (mass1, mass2), connections, Fraction(0), Fraction(2), H)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_model_exchange_equals_the_interpolating_co_simulation_fmu_in_every_backend(solver):
+    """Same solver code, same input polynomials at the same stage times, same history across
+    communication steps and start-up sweeps (saved with the FMU state): the same bits."""
+    cs = run_everywhere(oscillator(solver, False))
+    me = run_everywhere(oscillator(solver, True))
+    assert np.max(np.abs(cs["mass1.x"])) > 0.5  # it moves
+    for name in cs.dtype.names:
+        assert np.array_equal(me[name], cs[name]), name
+
+
+def test_the_plan_says_who_integrates():
+    text = api.plan(oscillator("ab3", True)).describe()
+    assert "mass1: k = 1" in text and "Model Exchange integrated by the master with ab3" in text
+
+
+def test_the_method_matters():
+    """The master's method is the one used: another gives other numbers (and the FMU's own solver
+    parameter, AB3 here, is not what integrates it)."""
+    sc = oscillator("ab3", True)
+    euler = dataclasses.replace(sc.components[0], model_exchange=ModelExchange("euler", H / SUBSTEPS))
+    a = api.run(sc, backend="in-process").data
+    b = api.run(dataclasses.replace(sc, components=(euler, sc.components[1])), backend="in-process").data
+    assert np.max(np.abs(a["mass1.x"] - b["mass1.x"])) > 1e-4
+
+
+# expected orders (/work's numerics facts: Euler 1, AB2 2, AB3 3, RK4 4, semi-implicit Euler 1,
+# semi-implicit midpoint 2), with the internal steps in their asymptotic range on these problems
+ORDERS = {
+    "euler": (1, 1 / 50),
+    "ab2": (2, 1 / 50),
+    "ab3": (3, 1 / 50),
+    "rk4": (4, 1 / 10),
+    "semi_implicit_euler": (1, 1 / 50),
+    "semi_implicit_midpoint": (2, 1 / 50),
+}
+
+
+def single(name: str, solver: str, h: float, parameters: dict | None = None) -> Scenario:
+    """Project FMU `name` alone as a Model Exchange component, one macro step of 1/10 s split into
+    internal steps of h, up to t = 1 s."""
+    me = ModelExchange(solver, Fraction(h).limit_denominator(10**6))
+    comp = Component(name, fmu_path(name), parameters=parameters or {}, model_exchange=me)
+    return Scenario(Path(f"{name}.ssd"), name, (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
+
+
+def observed_order(error) -> float:
+    """log2 of the error ratio between internal steps h and h/2."""
+    return math.log2(error(1) / error(2))
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_orders_on_the_test_equation(solver):
+    """dahlquist, y' = -y, y(1) = exp(-1): the error at t = 1 falls as h^p."""
+    p, h = ORDERS[solver]
+
+    def error(refine: int) -> float:
+        d = api.run(single("dahlquist", solver, h / refine), backend="in-process").data
+        return abs(float(d["dahlquist.y"][-1]) - math.exp(-1.0))
+
+    assert abs(observed_order(error) - p) < 0.2
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_orders_on_a_nonlinear_non_autonomous_system(solver):
+    """nonlinear: r' = -a r^3, theta' = omega (1 + t) in Cartesian form (a full Jacobian, from the
+    FMU's directional derivatives for the semi-implicit methods), closed-form solution."""
+    p, h = ORDERS[solver]
+    a, omega = 1.0, 1.0
+    r = 1.0 / math.sqrt(1.0 + 2.0 * a)
+    theta = omega * 1.5
+    exact = (r * math.cos(theta), r * math.sin(theta))
+
+    def error(refine: int) -> float:
+        d = api.run(single("nonlinear", solver, h / refine), backend="in-process").data
+        return math.hypot(float(d["nonlinear.x"][-1]) - exact[0], float(d["nonlinear.y"][-1]) - exact[1])
+
+    assert abs(observed_order(error) - p) < 0.25
+
+
+def without(source: Path, target: Path, interface: str, directional: bool = True) -> Path:
+    """A copy of a project FMU whose description lacks the element `interface` ("CoSimulation":
+    what a tool that exports Model Exchange alone gives) and, with directional=False, the
+    directional derivatives."""
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                start, end = text.index(f"<{interface}"), text.index(f"</{interface}>") + len(interface) + 3
+                text = text[:start] + text[end:]
+                if not directional:
+                    text = text.replace(' providesDirectionalDerivative="true"', "")
+                data = text.encode()
+            zout.writestr(item, data)
+    return target
+
+
+def test_an_fmu_without_co_simulation_runs_as_model_exchange(tmp_path):
+    """No setting needed: an FMU with only Model Exchange is integrated by the master (RK4, one step
+    per communication step, by default), equal to the same FMU asked to run as Model Exchange."""
+    only = without(fmu_path("dahlquist"), tmp_path / "dahlquist.fmu", "CoSimulation")
+    comp = Component("d", only, step_ratio=10)
+    sc = Scenario(tmp_path / "d.ssd", "d", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
+    assert "Model Exchange integrated by the master with rk4 (one step" in api.plan(sc).describe()
+    alone = run_everywhere(sc)
+    asked = dataclasses.replace(comp, fmu_path=fmu_path("dahlquist"), model_exchange=ModelExchange())
+    both = api.run(dataclasses.replace(sc, components=(asked,)), backend="in-process").data
+    assert np.array_equal(alone["d.y"], both["d.y"])
+    assert abs(float(alone["d.y"][-1]) - math.exp(-1.0)) < 1e-6  # RK4 at h = 0.01
+
+
+@pytest.mark.parametrize("solver", ["semi_implicit_euler", "semi_implicit_midpoint"])
+def test_without_directional_derivatives_the_jacobian_comes_from_finite_differences(tmp_path, solver):
+    """nonlinear without directional derivatives: its Jacobian by forward differences, the same
+    method up to the differences' error (relative sqrt(eps) in the Jacobian, times h in a step)."""
+    sc = single("nonlinear", solver, 1 / 100)
+    plain = without(fmu_path("nonlinear"), tmp_path / "nonlinear.fmu", "CoSimulation", directional=False)
+    comp = dataclasses.replace(sc.components[0], fmu_path=plain)
+    fd = api.run(dataclasses.replace(sc, components=(comp,)), backend="in-process").data
+    exact_jacobian = api.run(sc, backend="in-process").data
+    assert not np.array_equal(fd["nonlinear.x"], exact_jacobian["nonlinear.x"])  # another Jacobian was used
+    assert np.max(np.abs(fd["nonlinear.x"] - exact_jacobian["nonlinear.x"])) < 1e-8
+
+
+def test_a_failing_derivative_evaluation_names_the_call_and_the_step():
+    """crashtest fails its derivative evaluation from t = 0.5 s (mode 4): the run ends with the
+    component, the FMI function and the step."""
+    me = ModelExchange("rk4")
+    comp = Component("lag", fmu_path("crashtest"), parameters={"mode": 4, "at_time": 0.5}, model_exchange=me)
+    sc = Scenario(Path("lag.ssd"), "lag", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
+    for backend in ("in-process", "serial"):
+        with pytest.raises(SimulationError) as err:
+            api.run(sc, backend=backend)
+        assert "lag" in str(err.value) and "fmi2GetDerivatives" in str(err.value), str(err.value)
+        assert "t=0.5" in str(err.value) or "t=0.4" in str(err.value), str(err.value)
+
+
+def lag(h: Fraction, order: int, model_exchange: bool = True) -> Scenario:
+    """crashtest, y' = -y + u, y(0) = 1, driven by dahlquist, u = exp(-t): y = (1 + t) exp(-t).
+    The lag as Model Exchange (RK4, 8 internal steps per macro step h) with inputs extrapolated
+    with `order`, or as Co-Simulation (its RK4, same steps), which holds its inputs over a step."""
+    src = Component("src", fmu_path("dahlquist"), parameters={"internal_step": float(h / 8)})
+    me = ModelExchange("rk4", h / 8) if model_exchange else None
+    parameters = {} if model_exchange else {"solver": SOLVERS.index("rk4") + 1, "internal_step": float(h / 8)}
+    m = Component("lag", fmu_path("crashtest"), parameters, extrapolation_order=order, model_exchange=me)
+    connections = (Connection("src", "y", "lag", "u"),)
+    return Scenario(Path("lag.ssd"), "lag", (src, m), connections, Fraction(0), Fraction(1), h)
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_inputs_between_communication_points_are_the_polynomials(order):
+    """Jacobi coupling with extrapolation of order k converges as H^(k+1) when the consumer sees
+    the polynomial at its stage times; held over the step (a Co-Simulation FMU that does not
+    interpolate) it stays first order whatever k."""
+
+    def order_of(model_exchange: bool) -> float:
+        runs = [api.run(lag(Fraction(1, r), order, model_exchange), backend="in-process") for r in (20, 40)]
+        e = [abs(float(run.data["lag.y"][-1]) - 2 / math.e) for run in runs]
+        return math.log2(e[0] / e[1])
+
+    assert abs(order_of(True) - (order + 1)) < 0.15
+    assert abs(order_of(False) - 1) < 0.15
+
+
+SETTINGS = '<mm:Component name="lag" modelExchange="true" extrapolationOrder="2" {}/>'
+
+
+def scene_with(tmp_path: Path, settings: str) -> Path:
+    components = {"src": "project:dahlquist", "lag": "project:crashtest"}
+    return ssd(tmp_path / "me.ssd", components, [("src", "y", "lag", "u")], settings)
+
+
+def test_the_settings_annotation_asks_for_model_exchange(tmp_path):
+    settings = SETTINGS.format('stepRatio="2" solver="ab3" internalStep="0.0125"')
+    sc = api.load_scenario(scene_with(tmp_path, settings))
+    assert sc.component("lag").model_exchange == ModelExchange("ab3", Fraction(1, 80))
+    d = run_everywhere(sc)
+    assert abs(float(d["lag.y"][-1]) - 2 / math.e) < 1e-3  # order-2 coupling at H = 0.1 s
+
+
+@pytest.mark.parametrize(
+    "attributes, problem",
+    [
+        ('solver="ab4"', 'solver "ab4" is not one of euler, ab2'),
+        ('stepRatio="2" internalStep="0.03"', "internalStep 0.03 s does not divide the communication step"),
+    ],
+)
+def test_bad_model_exchange_settings_are_one_line_each(tmp_path, attributes, problem):
+    with pytest.raises(ScenarioError) as err:
+        api.load_scenario(scene_with(tmp_path, SETTINGS.format(attributes)))
+    assert len(err.value.problems) == 1
+    assert problem in str(err.value) and "me.ssd" in str(err.value)
+
+
+def test_a_solver_without_model_exchange_is_a_problem(tmp_path):
+    path = scene_with(tmp_path, '<mm:Component name="lag" solver="ab3"/>')
+    with pytest.raises(ScenarioError, match="solver and internalStep are for Model Exchange components"):
+        api.load_scenario(path)
+
+
+def test_a_scenario_built_in_python_is_checked_alike():
+    comp = Component("m", fmu_path("dahlquist"), model_exchange=ModelExchange("ab9", Fraction(3, 100)))
+    sc = Scenario(Path("m.ssd"), "m", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
+    with pytest.raises(ScenarioError) as err:
+        api.plan(sc)
+    assert 'solver "ab9"' in str(err.value) and "internalStep 0.03 s" in str(err.value)
+
+
+def test_a_model_exchange_setting_needs_the_interface(tmp_path):
+    """An FMU whose description offers no Model Exchange cannot be run as one."""
+    without(fmu_path("crashtest"), tmp_path / "crashtest.fmu", "ModelExchange")
+    components = {"src": "project:dahlquist", "lag": "crashtest.fmu"}
+    path = ssd(tmp_path / "me.ssd", components, [("src", "y", "lag", "u")], SETTINGS.format(""))
+    with pytest.raises(ScenarioError, match="crashtest.fmu has no Model Exchange 2.0 or 3.0 interface"):
+        api.load_scenario(path)
+
+
+def test_written_settings_read_back(tmp_path):
+    """A scenario written back (master tune's copies) keeps its Model Exchange settings."""
+    original = api.load_scenario(scene_with(tmp_path, SETTINGS.format('solver="ab3"')))
+    lag_ = dataclasses.replace(
+        original.component("lag"), model_exchange=ModelExchange("rk4", Fraction(1, 400))
+    )
+    changed = dataclasses.replace(original, components=(original.component("src"), lag_))
+    copy = write_settings(original, changed, tmp_path / "tuned.ssd", "tuned")
+    assert api.load_scenario(copy).component("lag").model_exchange == ModelExchange("rk4", Fraction(1, 400))
+    cs = dataclasses.replace(
+        changed, components=(original.component("src"), dataclasses.replace(lag_, model_exchange=None))
+    )
+    again = api.load_scenario(write_settings(original, cs, tmp_path / "cs.ssd", "cs"))
+    assert again.component("lag").model_exchange is None
