@@ -136,22 +136,40 @@ def test_orders_on_a_nonlinear_non_autonomous_system(solver):
     assert abs(observed_order(error) - p) < 0.25
 
 
-def without(source: Path, target: Path, interface: str, directional: bool = True) -> Path:
-    """A copy of a project FMU whose description lacks the element `interface` ("CoSimulation":
-    what a tool that exports Model Exchange alone gives) and, with directional=False, the
-    directional derivatives."""
+def described(source: Path, target: Path, change) -> Path:
+    """A copy of a project FMU whose modelDescription.xml is change(its text)."""
     with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w") as zout:
         for item in zin.infolist():
             data = zin.read(item.filename)
             if item.filename == "modelDescription.xml":
-                text = data.decode()
-                start, end = text.index(f"<{interface}"), text.index(f"</{interface}>") + len(interface) + 3
-                text = text[:start] + text[end:]
-                if not directional:
-                    text = text.replace(' providesDirectionalDerivative="true"', "")
-                data = text.encode()
+                data = change(data.decode()).encode()
             zout.writestr(item, data)
     return target
+
+
+def without(source: Path, target: Path, interface: str, directional: bool = True) -> Path:
+    """A copy of a project FMU whose description lacks the element `interface` ("CoSimulation":
+    what a tool that exports Model Exchange alone gives) and, with directional=False, the
+    directional derivatives."""
+
+    def change(text: str) -> str:
+        start, end = text.index(f"<{interface}"), text.index(f"</{interface}>") + len(interface) + 3
+        text = text[:start] + text[end:]
+        return text if directional else text.replace(' providesDirectionalDerivative="true"', "")
+
+    return described(source, target, change)
+
+
+def test_event_indicators_are_noted_as_not_watched(tmp_path):
+    """Events are the next step: an FMU that declares event indicators runs, with a note."""
+
+    def declare(text: str) -> str:
+        return text.replace('numberOfEventIndicators="0"', 'numberOfEventIndicators="1"')
+
+    indicated = described(fmu_path("dahlquist"), tmp_path / "d.fmu", declare)
+    comp = Component("d", indicated, model_exchange=ModelExchange())
+    sc = Scenario(tmp_path / "d.ssd", "d", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
+    assert any("its 1 event indicators are not watched" in note for note in api.plan(sc).notes)
 
 
 def test_an_fmu_without_co_simulation_runs_as_model_exchange(tmp_path):
@@ -166,6 +184,11 @@ def test_an_fmu_without_co_simulation_runs_as_model_exchange(tmp_path):
     both = api.run(dataclasses.replace(sc, components=(asked,)), backend="in-process").data
     assert np.array_equal(alone["d.y"], both["d.y"])
     assert abs(float(alone["d.y"][-1]) - math.exp(-1.0)) < 1e-6  # RK4 at h = 0.01
+
+
+def test_info_describes_an_fmu_without_co_simulation(tmp_path):
+    only = without(fmu_path("msd"), tmp_path / "msd.fmu", "CoSimulation")
+    assert "Model Exchange only: 2 continuous states, 0 event indicators" in api.fmu_info(only)
 
 
 @pytest.mark.parametrize("solver", ["semi_implicit_euler", "semi_implicit_midpoint"])
@@ -310,3 +333,19 @@ def test_the_papers_scenes_with_model_exchange_components(scene, stop):
     cs, ours = run_everywhere(sc), run_everywhere(me)
     for name in cs.dtype.names:
         assert np.array_equal(ours[name], cs[name]), name
+
+
+@pytest.mark.parametrize("solver", ["ab3", "semi_implicit_midpoint"])
+def test_fmi3_model_exchange_equals_fmi2(solver):
+    """msd built as FMI 3.0 (fmi3SetTime, fmi3SetContinuousStates,
+    fmi3GetContinuousStateDerivatives, fmi3CompletedIntegratorStep, fmi3GetDirectionalDerivative)
+    integrated by the master: the FMI 2.0 run's bits, in every backend."""
+    sc = oscillator(solver, True)
+    fmi3 = dataclasses.replace(sc.components[0], fmu_path=fmu_path("msd", fmi=3))
+    assert read_description(fmi3.fmu_path).fmiVersion == "3.0"
+    two, three = (
+        run_everywhere(sc),
+        run_everywhere(dataclasses.replace(sc, components=(fmi3, sc.components[1]))),
+    )
+    for name in two.dtype.names:
+        assert np.array_equal(three[name], two[name]), name
