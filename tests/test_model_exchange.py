@@ -22,7 +22,8 @@ from helpers import run_everywhere, ssd
 import master.api as api
 from master.backends.component import SimulationError
 from master.fmu import read_description, variables_of
-from master.fmubuild import fmu_path
+from master.fmubuild import SOLVER_ITEMS, fmu_path
+from master.runtime import native
 from master.scenario import ScenarioError
 from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario
 from master.scenario.writer import write_settings
@@ -349,3 +350,10 @@ def test_fmi3_model_exchange_equals_fmi2(solver):
     )
     for name in two.dtype.names:
         assert np.array_equal(three[name], two[name]), name
+
+
+def test_one_table_of_solver_names():
+    """The methods by name (SOLVERS, numbered from 1 as model.h's SolverKind, whose count the kernel
+    library reports: native checks it) are the items of the project FMUs' Solver enumeration."""
+    assert native.library() and native.CONSTANTS["SOLVER_COUNT"] == len(SOLVERS)
+    assert [name for name, _ in SOLVER_ITEMS] == list(SOLVERS)

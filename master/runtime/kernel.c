@@ -90,6 +90,7 @@ void mk_constants(int64_t *values) {
     values[9] = MK_LOOP_FIXED_POINT;
     values[10] = MK_EDGE_ASSUMED;
     values[11] = MK_LOOP_STATS;
+    values[12] = SOLVER_COUNT; /* the shared solvers (model.h), numbered 1 .. SOLVER_COUNT */
 }
 
 static int64_t now_ns(void) {
@@ -921,7 +922,8 @@ static int me_completed(me_context *m, double t, const double *x, bool final, bo
 /* One communication step of ME component ci from point j (time t), inputs u: its states integrated
  * to t + h by me_substeps steps of its solver (the substep times from the integer s, as the
  * project's FMUs take theirs), the FMU left at t + h with the step-start inputs. *terminate: 1 when
- * the FMU asks to end the simulation. */
+ * the FMU asks to end the simulation. A directional derivative that fails makes the Jacobian
+ * finite differences from then on (as the loops'). */
 static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int64_t j, bool final, int *terminate) {
     mk_component *c = &k->components[ci];
     me_context m = {c, u, t, MK_CALL_GET_STATES, STATUS_OK};
@@ -932,6 +934,11 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     for (int32_t s = 0; s < steps; s++) {
         int rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs,
                              c->me_state_vrs ? me_jacobian : NULL, &m, t + (double)s * h, h, c->me_x);
+        if (rc == 1 && m.call == MK_CALL_DIRECTIONAL_DERIVATIVE) { /* not this FMU's after all: */
+            c->me_state_vrs = NULL;                                 /* finite differences from now on */
+            rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs, NULL, &m,
+                             t + (double)s * h, h, c->me_x);
+        }
         if (rc == 1) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
         if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
         bool event = false, end = false;
@@ -940,11 +947,6 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
         if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, m.call, st, j);
         if (event) return fail(k, MK_EVENT, ci, MK_CALL_COMPLETED_STEP, st, j);
         if (end) *terminate = 1;
-    }
-    if (n == 0) { /* no states: the FMU at the step's end all the same */
-        m.call = MK_CALL_SET_TIME;
-        if ((m.status = ((fmi_set_time *)c->set_time)(c->instance, t + c->h)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
     }
     /* the step-start inputs again, as an interpolating FMU has them after its step */
     if (c->n_blocks > c->n_values && c->n_in_real && (m.status = set_real(c, c->in_vrs, c->n_in_real, u, c->n_in_real)) > STATUS_OK)

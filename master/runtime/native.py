@@ -17,7 +17,7 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
+from master.scenario.model import LOOP_METHODS, SOLVERS, TRANSFORMATIONS
 from master.schedule import EDGE_ASSUMED
 
 HERE = Path(__file__).resolve().parent
@@ -103,6 +103,8 @@ CONSTANTS = {
     **{f"MK_LOOP_{m.upper().replace('-', '_')}": code for code, m in enumerate(LOOP_METHODS)},
     "MK_EDGE_ASSUMED": EDGE_ASSUMED,
     "MK_LOOP_STATS": 8,
+    # the shared solvers' methods (fmus/fmi/model.h SolverKind 1..SOLVER_COUNT), by name in SOLVERS
+    "SOLVER_COUNT": len(SOLVERS),
 }
 # a loop's counters (kernel.h mk_loop.stats), in their order
 LOOP_STATS = ("solves", "iterations", "evaluations", "jacobians", "most", "sequential")
