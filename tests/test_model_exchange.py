@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers import run_everywhere, ssd
+from test_parallel import CAUSES, assert_no_children, lags
 
 import master.api as api
 from master.backends.component import SimulationError
@@ -357,3 +358,24 @@ def test_one_table_of_solver_names():
     library reports: native checks it) are the items of the project FMUs' Solver enumeration."""
     assert native.library() and native.CONSTANTS["SOLVER_COUNT"] == len(SOLVERS)
     assert [name for name, _ in SOLVER_ITEMS] == list(SOLVERS)
+
+
+@pytest.mark.parametrize("backend", ["serial", "parallel"])
+@pytest.mark.parametrize("mode", [1, 2, 4, 5], ids=["segfault", "hang", "error", "fatal"])
+def test_a_failing_model_exchange_component_is_isolated_as_a_co_simulation_one(mode, backend):
+    """c1 of three crashtest lags, run as Model Exchange, misbehaves in its derivatives from
+    t = 0.5 s: the run stops there naming it, the time and the cause, rows kept, no process left.
+    (The FMU reports its fatal error in fmi2GetDerivatives as fmi2Error.)"""
+    sc = lags(3, params={"c1": {"mode": mode, "at_time": 0.5}})
+    me = dataclasses.replace(sc.components[1], model_exchange=ModelExchange("rk4"))
+    sc = dataclasses.replace(sc, components=(sc.components[0], me, sc.components[2]))
+    with pytest.raises(SimulationError) as info:
+        api.run(sc, backend=backend, step_timeout=0.5)
+    e = info.value
+    cause = CAUSES[mode] if mode in (1, 2, 4) else "crashtest: fatal error requested at t = 0.5"
+    assert e.component == "c1" and cause in str(e), str(e)
+    assert mode in (1, 2) or "fmi2GetDerivatives failed" in str(e), str(
+        e
+    )  # a crash or hang: no call returned
+    assert e.time == pytest.approx(0.5, abs=0.011) and len(e.result.data) >= 50
+    assert_no_children()

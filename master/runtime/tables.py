@@ -15,6 +15,7 @@ import mmap
 import weakref
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from master.backends.component import (
     GROWTH_LIMIT,
@@ -803,8 +804,8 @@ class CompiledPlan:
             return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
         if call in ME_CALLS or call == "directional_derivative":
             slot = "get_directional_derivative" if call == "directional_derivative" else call
-            function = FMI_FUNCTIONS[slot][fmu.fmi - 1]
-            cause = FmuError(fmu.describe(f"{function} failed with status {e.status}"))
+            failed = FMICallException(function=FMI_FUNCTIONS[slot][fmu.fmi - 1], status=e.status)
+            cause = FmuError(fmu.describe(str(failed)))
             return SimulationError(f"{cause} {step}", name, t)
         if call in ("get_typed", "set_typed"):
             typed = next(n for n, k in native.TYPED.items() if k == e.kind)
