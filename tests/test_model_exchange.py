@@ -26,7 +26,7 @@ from master.fmu import read_description, variables_of
 from master.fmubuild import SOLVER_ITEMS, fmu_path
 from master.runtime import native
 from master.scenario import ScenarioError
-from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario
+from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario, Scheme
 from master.scenario.writer import write_settings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -67,6 +67,49 @@ def test_model_exchange_equals_the_interpolating_co_simulation_fmu_in_every_back
     assert np.max(np.abs(cs["mass1.x"])) > 0.5  # it moves
     for name in cs.dtype.names:
         assert np.array_equal(me[name], cs[name]), name
+
+
+@pytest.mark.parametrize(
+    "order", [("mass2", "mass1"), ("mass1", "mass2")], ids=["mass1-second", "mass1-first"]
+)
+def test_gauss_seidel_alike(order):
+    """Gauss-Seidel, the Model Exchange component stepping after its source (interpolated inputs)
+    or before it: the interpolating Co-Simulation FMU's bits."""
+    cs = dataclasses.replace(oscillator("ab3", False), coupling=Scheme.GAUSS_SEIDEL, order=order)
+    me = dataclasses.replace(oscillator("ab3", True), coupling=Scheme.GAUSS_SEIDEL, order=order)
+    a, b = run_everywhere(cs), run_everywhere(me)
+    for name in a.dtype.names:
+        assert np.array_equal(b[name], a[name]), name
+
+
+@pytest.mark.parametrize("solver", ["rk4", "semi_implicit_midpoint"])
+def test_several_communication_steps_per_macro_step(solver):
+    """mass1 at 4 communication steps per macro step of 2 internal steps each, its inputs held
+    (order 0): as Model Exchange, the Co-Simulation FMU's bits (which holds its inputs over a step)."""
+
+    def quarter(sc: Scenario) -> Scenario:
+        c = sc.components[0]
+        me = ModelExchange(solver, H / 8) if c.model_exchange else None
+        parameters = {**c.parameters, "internal_step": float(H / 8)}
+        c = dataclasses.replace(c, step_ratio=4, extrapolation_order=0, interpolate_inputs=False)
+        c = dataclasses.replace(c, parameters=parameters, model_exchange=me)
+        return dataclasses.replace(sc, components=(c, sc.components[1]))
+
+    a, b = (
+        run_everywhere(quarter(oscillator(solver, False))),
+        run_everywhere(quarter(oscillator(solver, True))),
+    )
+    for name in a.dtype.names:
+        assert np.array_equal(b[name], a[name]), name
+
+
+def test_divergence_is_caught():
+    """y' = 30 y by Euler at 0.1 s: the divergence check ends the run as for any component."""
+    me = ModelExchange("euler")
+    comp = Component("d", fmu_path("dahlquist"), parameters={"lambda": 30.0}, model_exchange=me)
+    sc = Scenario(Path("d.ssd"), "d", (comp,), (), Fraction(0), Fraction(10), Fraction(1, 10))
+    with pytest.raises(SimulationError, match="unstable: d.y at t=1.0"):
+        api.run(sc, backend="in-process")
 
 
 def test_the_plan_says_who_integrates():
