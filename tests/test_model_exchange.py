@@ -22,6 +22,9 @@ from test_parallel import CAUSES, assert_no_children, lags
 
 import master.api as api
 from master.backends.component import SimulationError
+from master.evidence.linear import AB3, EULER
+from master.evidence.oscillator import scene
+from master.evidence.stability import linearize
 from master.fmu import read_description, variables_of
 from master.fmubuild import SOLVER_ITEMS, fmu_path
 from master.runtime import native
@@ -422,3 +425,19 @@ def test_a_failing_model_exchange_component_is_isolated_as_a_co_simulation_one(m
     )  # a crash or hang: no call returned
     assert e.time == pytest.approx(0.5, abs=0.011) and len(e.result.data) >= 50
     assert_no_children()
+
+
+def test_the_linear_stability_analysis_models_the_master_s_method():
+    """linearize: mass1 as Model Exchange (AB3, 4 steps per macro step, inputs as polynomials) is
+    the interpolating Co-Simulation FMU with the same method and steps, and the FMU's own solver
+    parameter (Euler here) is not what the analysis takes."""
+    cs = scene(order=2, solvers=(AB3, EULER), interpolate=(True, False), substeps=4)
+    mass1 = dataclasses.replace(
+        cs.components[0], model_exchange=ModelExchange("ab3", H / 4), interpolate_inputs=False
+    )
+    mass1 = dataclasses.replace(mass1, parameters={**mass1.parameters, "solver": EULER})
+    me = dataclasses.replace(cs, components=(mass1, cs.components[1]))
+    a, b = linearize(cs, t=0.5).components[0], linearize(me, t=0.5).components[0]
+    assert (
+        (b.solver, b.substeps, b.input_mode) == (a.solver, a.substeps, a.input_mode) == (AB3, 4, "polynomial")
+    )
