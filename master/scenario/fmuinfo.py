@@ -350,6 +350,7 @@ class FmuInfo:
     unsupported: str | None = None
     # what fmpy's strict validation finds wrong with a description read all the same (master.fmu.defects)
     defects: tuple[str, ...] = ()
+    model_exchange: bool = False  # a Model Exchange 2.0 or 3.0 interface the master can integrate
 
 
 def project_fmu_names() -> list[str]:
@@ -486,6 +487,7 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
         sizes={k: tuple(v) for k, v in sizes.items()},
         unsupported=unsupported(md, path),
         defects=defects(path),
+        model_exchange=md.modelExchange is not None and md.fmiVersion != "1.0",
     )
 
 
