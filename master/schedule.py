@@ -23,7 +23,7 @@ from master.scenario.fmuinfo import (
     recordable,
     recorded_as,
 )
-from master.scenario.model import Scenario, Stimulus, Transformation
+from master.scenario.model import Iteration, Scenario, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
@@ -163,6 +163,9 @@ class Plan:
     record_errors: tuple[tuple[str, str, str, str], ...] = ()
     # how the results hold each `record` column (fmuinfo.recorded_as); empty: every one a float64
     record_types: tuple[str, ...] = ()
+    # iterated macro steps (strong coupling, Scenario.iteration): every macro step repeated from saved
+    # FMU states, relaxed windows as in start-up, until its coupled samples settle; None: explicit
+    iteration: Iteration | None = None
 
     @property
     def column_types(self) -> dict[str, str]:
@@ -216,6 +219,12 @@ class Plan:
                 lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}{described(t)}")
         for s in self.stimuli:
             lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
+        if self.iteration is not None:
+            it = self.iteration
+            lines.append(
+                f"  iterated: every macro step repeated from saved FMU states until no coupled sample "
+                f"changes by more than {it.tolerance:g} (1 + |value|), at most {it.max_iterations} sweeps"
+            )
         lines.extend(f"  note: {n}" for n in self.notes)
         return "\n".join(lines)
 
@@ -390,6 +399,7 @@ def build_plan(
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
         exclusive=exclusive,
+        iteration=sc.iteration,
         record_errors=tuple(
             (lk.source, o, lk.consumer, i)
             for lk in links

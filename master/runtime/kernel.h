@@ -48,6 +48,9 @@ enum {
     MK_INEXACT = 8,    /* a 64-bit integer output in a history (a coupled one) is beyond 2^53 in
                           magnitude: a double cannot carry it exactly */
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
+    MK_NOT_CONVERGED = 10, /* iterated macro steps: a coupled signal still changed beyond the tolerance
+                              after the most sweeps allowed (mk_error: the component, its output
+                              with the largest change and that change, the sweeps in `integer`) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -311,6 +314,10 @@ typedef struct {
                                  not to begin) and its communication point */
     int64_t *busy;            /* [2]: CLOCK_MONOTONIC ns at which this worker's FMU step began (0:
                                  none running), and that component */
+    mk_counter *unsettled;    /* iterated macro steps: advanced by every process whose components'
+                                 coupled samples still changed in a sweep (read after a barrier) */
+    mk_counter *swept;        /* [n_components]: iterated sweeps a component has completed (a
+                                 consumer of a source that goes first waits for its current sweep) */
     int32_t worker;
     int32_t n_workers;
     int64_t spin_ns; /* how long a waiter spins before it sleeps */
@@ -344,6 +351,20 @@ typedef struct {
     mk_error error;
     int32_t n_resample_order;
     const int32_t *resample_order; /* resampling components, sources of input-dependent outputs first */
+    /* Iterated macro steps (strong coupling): iterate > 0 repeats every macro step from the saved FMU
+     * states, as the start-up sweeps do, until no coupled sample of it (n k + 1 .. (n + 1) k of
+     * every column `coupled` marks, and every coupled String or Binary) changes by more than
+     * tolerance (1 + |sample|) between sweeps, in at most `iterate` sweeps (else MK_NOT_CONVERGED).
+     * Its relaxed sweeps read a source that goes first from the current sweep (Gauss-Seidel
+     * waveform iteration; start-up sweeps without it read every source's previous sweep). Several
+     * processes agree through shared->unsettled, so every one does the same sweeps. */
+    int32_t iterate;           /* most sweeps per macro step; 0: explicit coupling */
+    double tolerance;
+    const uint8_t *coupled;    /* [sum of n_out over the components, in stepping order] */
+    int64_t *iterations;       /* [3]: sweeps in all, most in one macro step, macro steps iterated
+                                  (written by the only process, or worker 0: all count the same) */
+    int64_t sweeps;            /* sweeps this process has done (the target of shared->swept) */
+    int64_t unsettled_seen;    /* shared->unsettled as last read */
 } mk_kernel;
 
 /* Sizes of the structures, for the ctypes mirror to check itself against. */

@@ -29,6 +29,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
 DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT, TOO_LONG = range(10)
+NOT_CONVERGED = 10  # iterated macro steps: the sweeps did not settle (kernel.h)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -94,6 +95,8 @@ class Shared(C.Structure):
         ("stop_at", C.POINTER(Counter)),
         ("stopper", C.POINTER(_i64)),
         ("busy", C.POINTER(_i64)),
+        ("unsettled", C.POINTER(Counter)),
+        ("swept", C.POINTER(Counter)),
         ("worker", _i32),
         ("n_workers", _i32),
         ("spin_ns", _i64),
@@ -309,6 +312,12 @@ class Kernel(C.Structure):
         ("error", Error),
         ("n_resample_order", _i32),
         ("resample_order", C.POINTER(_i32)),
+        ("iterate", _i32),
+        ("tolerance", _f64),
+        ("coupled", C.POINTER(C.c_uint8)),
+        ("iterations", C.POINTER(_i64)),
+        ("sweeps", _i64),
+        ("unsettled_seen", _i64),
     ]
 
 

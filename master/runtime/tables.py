@@ -165,6 +165,9 @@ def layout(
     out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
     n_estimates = max(sum(len(lk.inputs) for lk in plan.links), 1)
     out["estimates"] = ((n_estimates, native.ERROR_FIELDS), "float64")  # see mk_link
+    out["unsettled"] = ((1, counter), "uint8")  # iterated macro steps (kernel.h)
+    out["swept"] = ((nc, counter), "uint8")
+    out["iterations"] = ((8,), "int64")  # [0..3): sweeps, most in one macro step, macro steps iterated
     out["steps"] = ((nc, 8), "int64")  # [i, 0]: component i's; a cache line each (workers write them)
     out["fmu_time"] = ((nc, 8), "float64")
     return out
@@ -211,6 +214,7 @@ class CompiledPlan:
         k.startup_steps = plan.startup_steps
         k.startup_sweeps = plan.startup_sweeps
         k.record_every = plan.record_every
+        self._iteration(k)
         k.n_resample_order = len(order)
         k.resample_order = _ptr(self._array([self.names.index(n) for n in order], np.int32), C.c_int32)
         mc = plan.macro_clock
@@ -246,6 +250,17 @@ class CompiledPlan:
         self.position = 0  # the next macro step (after a failure: the one that failed)
 
     # -- building -------------------------------------------------------------------------------
+    def _iteration(self, k: native.Kernel) -> None:
+        """Iterated macro steps (kernel.h: mk_kernel.iterate): the sweeps allowed, the tolerance, the
+        history columns whose settling ends the sweeps (those a link reads) and the counts."""
+        it = self.plan.iteration
+        k.iterate = it.max_iterations if it is not None else 0
+        k.tolerance = it.tolerance if it is not None else 0.0
+        read = {(lk.source, o) for lk in self.plan.links for o in lk.outputs}
+        mask = [(n, o) in read for n in self.names for o in self.outs[n]]
+        k.coupled = _ptr(self._array(mask, np.uint8), C.c_uint8)
+        k.iterations = _ptr(self.memory["iterations"], C.c_int64)
+
     def _array(self, values, dtype) -> np.ndarray:
         a = np.ascontiguousarray(values, dtype=dtype)
         if a.size == 0:
@@ -631,6 +646,19 @@ class CompiledPlan:
         e = self.kernel.error
         name, fmu, pc = self.names[e.component], self.fmus[e.component], self.plan.components[e.component]
         t, t1 = pc.clock.time(e.point), pc.clock.time(e.point + 1)
+        if e.code == native.NOT_CONVERGED:
+            outs = self.outs[name] + string_output_names(self.plan, name)
+            it = self.plan.iteration
+            end = pc.clock.time(e.point + pc.ratio)
+            return SimulationError(
+                f"iterated coupling did not converge in the macro step from t={t} to t={end}: after "
+                f"{int(e.integer)} sweeps {name}.{outs[e.variable]} still changed by {e.value:.3g} "
+                f"(tolerance {it.tolerance:g} (1 + |value|)); raise maxIterations of mm:Iteration or "
+                "shorten the macro step",
+                name,
+                t,
+                outs[e.variable],
+            )
         if e.code in (native.NOT_FINITE, native.DIVERGED):
             bad = self.outs[name][e.variable]
             if e.code == native.DIVERGED:
@@ -753,6 +781,8 @@ def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_
         "rows_drained",
         "cancel",
         "stop_at",
+        "unsettled",
+        "swept",
     ):
         setattr(sh, name, C.cast(memory[name].ctypes.data, C.POINTER(native.Counter)))
     sh.stopper = C.cast(memory["stopper"].ctypes.data, C.POINTER(C.c_int64))
@@ -895,6 +925,15 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }
     return out
+
+
+def iteration_counts(plan: Plan, memory: Memory) -> dict[str, int] | None:
+    """Iterated macro steps: "sweeps" (repetitions from saved states, in all), "max" (the most in
+    one macro step), "macro_steps" (those iterated); None when the plan does not iterate."""
+    if plan.iteration is None:
+        return None
+    counts = memory["iterations"]
+    return {"sweeps": int(counts[0]), "max": int(counts[1]), "macro_steps": int(counts[2])}
 
 
 def shared_stop(plan: Plan, memory: Memory) -> tuple[str, float] | None:

@@ -344,6 +344,7 @@ class FmuInfo:
     feedthrough: dict[str, frozenset[str]]  # output name -> inputs it depends on directly
     co_simulation: bool
     can_interpolate_inputs: bool
+    can_get_set_state: bool = False  # canGetAndSetFMUstate (FMI 3: canGetAndSetFMUState)
     # structural parameters that give an array its size -> the arrays they size
     sizes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     # why the master cannot run this FMU (master.fmu.unsupported: FMI version, interface); None if it can
@@ -483,6 +484,7 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
         feedthrough=feedthrough,
         co_simulation=cs is not None,
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
+        can_get_set_state=bool(cs is not None and cs.canGetAndSetFMUstate),
         sizes={k: tuple(v) for k, v in sizes.items()},
         unsupported=unsupported(md, path),
         defects=defects(path),
