@@ -15,7 +15,7 @@ import pytest
 
 from master.api import run
 from master.backends.component import SimulationError
-from master.evidence import linear
+from master.evidence import bench, linear
 from master.evidence.oscillator import SET_A, SET_A_Z0, scene, split_scheme
 from master.evidence.stability import run_is_stable
 from master.scenario.check import check
@@ -230,3 +230,41 @@ def test_a_connection_without_feedback_is_iterated_exactly(first):
     swept = linear.step_matrix(dataclasses.replace(lin, iterate=1 if first else 2), 0.1)
     assert np.allclose(converged, swept, rtol=0, atol=1e-13)
     assert linear.sweep_radius(dataclasses.replace(lin, iterate="converged"), 0.1) < 1e-12
+
+
+def test_tune_tries_iterated_coupling_and_counts_its_sweeps():
+    """A scene without a bench profile: `master tune` tries iterated Gauss-Seidel families beside the
+    explicit ones, runs them, and its cost model charges each macro step 1 + the sweeps it took."""
+    from master.tune import CostModel, report, tune
+
+    sc = dataclasses.replace(set_b(Fraction(1, 20), stop=Fraction(20), iteration=None),
+                             record=(("mass1", "x"), ("mass2", "x")))  # fmt: skip
+    result = tune(sc, 1e-2, repeats=1)
+    iterated = [ch for ch in result.choices if ch.trial.config.iterated]
+    assert iterated and all(ch.trial.sweeps >= 1 for ch in iterated)
+    scene = bench.apply(sc, result.profile, iterated[0].trial.config)
+    once = CostModel.cost(scene, result.costs)
+    assert iterated[0].cost == pytest.approx((1 + iterated[0].trial.sweeps) * once, rel=0.2)
+    assert "gauss-seidel, iterated" in report(result)
+
+
+def test_the_tune_variants_of_a_family_flip_iterated_coupling():
+    from master.tune import variants
+
+    p = bench.PROFILES["oscillator"]
+    assert any(v.iterated for _, v in variants(p.base, p))
+    assert bench.linear_scheme(split_scheme(SET_A), p, dataclasses.replace(p.base, iterated=True)).iterate
+
+
+def test_the_writer_carries_iterated_coupling_into_the_scene_file(tmp_path):
+    from master.api import load_scenario
+    from master.scenario.writer import write_settings
+
+    folder = ROOT / "models" / "oscillator"
+    for f in folder.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    sc = load_scenario(tmp_path / "SystemStructure.ssd")
+    on = write_settings(sc, dataclasses.replace(sc, iteration=Iteration(1e-9, 7)), tmp_path / "on.ssd", "on")
+    assert load_scenario(on).iteration == Iteration(1e-9, 7)
+    off = write_settings(load_scenario(on), sc, tmp_path / "off.ssd", "off")
+    assert load_scenario(off).iteration is None
