@@ -331,10 +331,12 @@ def build_plan(
     if startup_steps:
         if all(capabilities.get(n, Capability()).can_get_set_state for n in names):
             startup_sweeps = max(lk.order for lk in links)
-            notes.append(
-                f"start-up: macro steps 0..{startup_steps - 1} are repeated {startup_sweeps} time(s) from "
-                "saved FMU states with interpolation over the step (whole system integrated together)"
-            )
+            if sc.iteration is None:  # iterated, every macro step is repeated until it settles
+                notes.append(
+                    f"start-up: macro steps 0..{startup_steps - 1} are repeated {startup_sweeps} time(s) "
+                    "from saved FMU states with interpolation over the step (whole system integrated "
+                    "together)"
+                )
         else:
             notes.append("start-up: not every FMU can save its state, so start-up steps are not repeated")
     for name, pc in comps.items():
