@@ -5,6 +5,7 @@ order 2, inputs as polynomials, RK4 at a tenth of the macro step, is unstable be
 explicit and stable far beyond when iterated."""
 
 import dataclasses
+import shutil
 import subprocess
 import sys
 from fractions import Fraction
@@ -295,3 +296,30 @@ def test_string_connections_settle_too(backend):
     assert result.summary.iterations["max"] == 2  # c gets b's settled Strings in the second sweep
     for name in seidel.dtype.names:
         assert np.array_equal(result.data[name], seidel[name]), name
+
+
+def test_master_validate_names_at_mm_iteration_an_fmu_that_cannot_save_its_state(tmp_path):
+    """A scene file whose mass2 is an FMI 1.0 FMU (no FMU state) and that asks for iteration."""
+    from master.api import validate
+    from master.fmubuild import fmu_path
+
+    folder = ROOT / "models" / "oscillator"
+    for f in ("mass1.ssv", "mass2.ssv"):
+        (tmp_path / f).write_bytes((folder / f).read_bytes())
+    shutil.copy(fmu_path("msd", fmi=1), tmp_path / "msd1.fmu")
+    text = (folder / "SystemStructure.ssd").read_text()
+    text = text.replace('<ssd:Component name="mass2" source="project:msd">',
+                        '<ssd:Component name="mass2" source="msd1.fmu">')  # fmt: skip
+    rk4 = '<ssv:Enumeration value="rk4"/>'  # FMI 1.0 has no enumerations: mass2's solver is an Integer
+    head, tail = text.rsplit(rk4, 1)
+    text = head + '<ssv:Integer value="4"/>' + tail
+    (tmp_path / "plain.ssd").write_text(text)
+    iterated = text.replace("</mm:Record>", '</mm:Record>\n          <mm:Iteration tolerance="1e-10"/>')
+    (tmp_path / "iterated.ssd").write_text(iterated)
+    assert not validate(tmp_path / "plain.ssd")
+    problems = [str(p) for p in validate(tmp_path / "iterated.ssd")]
+    assert len(problems) == 1
+    assert (
+        "iterated.ssd:" in problems[0] and "mm:Iteration" in problems[0] and "component mass2" in problems[0]
+    )
+    assert "msd1.fmu cannot save its state (canGetAndSetFMUstate false)" in problems[0]

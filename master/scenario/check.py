@@ -152,12 +152,9 @@ def _iteration(sc: Scenario, infos: Infos, at: At) -> None:
         return
     for c in sc.components:
         info = infos.get(c.name)
-        if info is not None and not info.can_get_set_state:
-            at(
-                f"component {c.name}",
-                f"iterated macro steps (mm:Iteration) repeat each macro step from saved FMU states, but "
-                f"{info.path.name} cannot save its state (canGetAndSetFMUstate false)",
-            )
+        problem = fmuinfo.iteration_problem(info) if info is not None else None
+        if problem:
+            at(f"component {c.name}", problem)
 
 
 def _order_ok(order: object) -> bool:
