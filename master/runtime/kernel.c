@@ -965,7 +965,8 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
         if (!c->local) continue;
         const int32_t nt = c->n_out_string + c->n_out_binary;
         for (int64_t j = n * c->ratio + 1; j <= (n + 1) * c->ratio; j++) {
-            const double *now = c->hist + (j % c->cap) * c->n_out, *before = c->hist_previous + (j % c->cap) * c->n_out;
+            const double *now = c->hist + (j % c->cap) * c->n_out;
+            const double *before = c->hist_previous + (j % c->cap) * c->n_out;
             for (int32_t o = 0; o < c->n_out; o++) {
                 if (!coupled[o]) continue;
                 const double d = fabs(now[o] - before[o]), scale = 1.0 + fabs(now[o]);
