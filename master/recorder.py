@@ -389,7 +389,8 @@ class RunSummary:
         if self.iterations is not None:
             it, mean = self.iterations, self.iterations["sweeps"] / max(self.iterations["macro_steps"], 1)
             lines.append(
-                f"  iterated coupling: {it['sweeps']} sweeps in {it['macro_steps']} macro steps "
+                f"  iterated coupling: {it['sweeps']} sweep{'s' if it['sweeps'] != 1 else ''} in "
+                f"{it['macro_steps']} macro step{'s' if it['macro_steps'] != 1 else ''} "
                 f"(mean {mean:.2f}, at most {it['max']} in one)"
             )
         if self.overruns is not None:

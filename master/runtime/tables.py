@@ -651,9 +651,10 @@ class CompiledPlan:
             it = self.plan.iteration
             end = pc.clock.time(e.point + pc.ratio)
             by = f" by {e.value:.3g}" if e.variable < len(self.outs[name]) else ""  # a String: no number
+            sweeps = f"{int(e.integer)} sweep" + ("s" if e.integer != 1 else "")
             return SimulationError(
                 f"iterated coupling did not converge in the macro step from t={t} to t={end}: after "
-                f"{int(e.integer)} sweeps {name}.{outs[e.variable]} still changed{by} "
+                f"{sweeps} {name}.{outs[e.variable]} still changed{by} "
                 f"(tolerance {it.tolerance:g} (1 + |value|)); raise maxIterations of mm:Iteration or "
                 "shorten the macro step",
                 name,
