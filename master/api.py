@@ -16,7 +16,7 @@ from pathlib import Path
 from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
-from master.fmu import FmuError, defects, read_description, variables_of
+from master.fmu import FmuError, defects, output_dependencies, read_description, variables_of
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
@@ -161,12 +161,16 @@ def plan(sc: Scenario) -> Plan:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
         cs = md.coSimulation
+        depends, assumed = output_dependencies(md)
         caps[c.name] = Capability(
             bool(cs.canInterpolateInputs),
             md.fmiVersion,
             bool(cs.canGetAndSetFMUstate),
             bool(cs.canBeInstantiatedOnlyOncePerProcess),
             bool(cs.needsExecutionTool),
+            depends,
+            assumed,
+            bool(cs.providesDirectionalDerivative),
         )
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
@@ -373,6 +377,19 @@ def validate(
     from master.scenario import validate as _validate
 
     return list(_validate(Path(path), **_times(stop_time, macro_step)))
+
+
+def loop_notes(
+    path: str | Path,
+    stop_time: float | str | Fraction | None = None,
+    macro_step: float | str | Fraction | None = None,
+) -> list[str]:
+    """What a valid scenario's plan says of its algebraic loops and of the FMUs that declare no
+    dependencies there (`master validate` prints them)."""
+    p = plan(load_scenario(path, None, stop_time, macro_step))
+    return [n for n in p.notes if n.startswith("algebraic loop")] + [
+        n for _, n in p.fmu_notes if "declares no dependencies" in n
+    ]
 
 
 def info(

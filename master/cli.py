@@ -365,6 +365,8 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
             print(pr)
         if not problems:
             print(f"{args.scenario}: ok")
+            for note in api.loop_notes(args.scenario, args.stop_time, args.macro_step):
+                print(f"  note: {note}")
         return 1 if problems else 0
     if args.command == "info":
         print(api.info(args.path, args.stop_time, args.macro_step))

@@ -327,12 +327,24 @@ def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
 
 def feedthrough_outputs(md: ModelDescription) -> set[str]:
     """Outputs that may depend directly on inputs (no dependency list: assume they do)."""
-    out = set()
+    depends, _ = output_dependencies(md)
+    return {o for o, inputs in depends.items() if inputs}
+
+
+def output_dependencies(md: ModelDescription) -> tuple[dict[str, frozenset[str]], frozenset[str]]:
+    """(output -> the inputs it depends on directly, the outputs that declare no dependencies):
+    an output without a `dependencies` attribute depends on every input (FMI 2.0 section 2.2.8,
+    FMI 3.0 section 2.4.8), an assumption the loop solver tests at the start of a run."""
+    inputs = frozenset(v.name for v in md.modelVariables if v.causality == "input")
+    depends: dict[str, frozenset[str]] = {}
+    assumed = set()
     for u in md.outputs:
-        deps = u.dependencies
-        if deps is None or any(d.causality == "input" for d in deps):
-            out.add(u.variable.name)
-    return out
+        if u.dependencies is None:
+            depends[u.variable.name] = inputs
+            assumed.add(u.variable.name)
+        else:
+            depends[u.variable.name] = frozenset(d.name for d in u.dependencies) & inputs
+    return depends, frozenset(assumed)
 
 
 def safe_extract(path: Path, dest: Path) -> Path:

@@ -359,6 +359,8 @@ class RunSummary:
     # "rms", relative to the range of the source's samples from the first full-order prediction
     # on (the coupling error estimate, master.runtime.tables.coupling_errors)
     coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
+    # per algebraic loop (its cycle): its counters, master.runtime.tables.loop_stats
+    loops: dict[str, dict[str, float]] = field(default_factory=dict)
     # iterated macro steps (master.runtime.tables.iteration_counts): "sweeps" in all, "max" in one
     # macro step, "macro_steps" iterated; None: explicit coupling
     iterations: dict[str, int] | None = None
@@ -407,6 +409,14 @@ class RunSummary:
             lines.append(
                 f"  coupling error estimate {name}: max {e['max']:.2g}, rms {e['rms']:.2g} of its range"
             )
+        for cycle, s in self.loops.items():
+            how = (
+                "no cycle found at the start: each member read once per point"
+                if s["sequential"]
+                else f"{s['iterations']} iterations (at most {s['most']} at one point), {s['jacobians']} "
+                f"Jacobians, largest accepted change {s['worst']:.2g}"
+            )
+            lines.append(f"  algebraic loop {cycle}: {s['solves']} solves, {how}")
         lines.extend(f"  note: {n}" for n in self.notes)
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")

@@ -8,6 +8,7 @@ run of any length ends exactly at the stop time. Times are in seconds.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -23,7 +24,8 @@ from master.scenario.fmuinfo import (
     recordable,
     recorded_as,
 )
-from master.scenario.model import Iteration, Scenario, Stimulus, Transformation
+from master.scenario.loops import cycle_in, strongly_connected
+from master.scenario.model import Iteration, Scenario, Scheme, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
@@ -37,6 +39,16 @@ class Capability:
     can_get_set_state: bool = False
     once_per_process: bool = False  # canBeInstantiatedOnlyOncePerProcess
     needs_execution_tool: bool = False
+    # output -> the inputs it depends on directly (None: every output on every input)
+    dependencies: dict[str, frozenset[str]] | None = None
+    assumed: frozenset[str] = frozenset()  # outputs that declare no dependencies (fmu.output_dependencies)
+    directional_derivatives: bool = False  # providesDirectionalDerivative(s)
+
+    def depends(self, output: str, inputs: dict[str, VariableInfo]) -> frozenset[str]:
+        """The inputs `output` depends on directly (no table: all of `inputs`)."""
+        if self.dependencies is None:
+            return frozenset(n for n, v in inputs.items() if v.causality == "input")
+        return self.dependencies.get(output, frozenset())
 
 
 @dataclass(frozen=True)
@@ -128,6 +140,30 @@ class Link:
             n += 1
 
 
+# what an algebraic loop's Jacobian entry d(unknown i)/d(unknown j) is known to be (kernel.h: MK_EDGE_*)
+EDGE_NONE, EDGE_DECLARED, EDGE_ASSUMED = range(3)
+
+
+@dataclass(frozen=True)
+class Loop:
+    """An algebraic loop: components whose outputs depend directly on inputs around a cycle, solved
+    at every communication point they share (the macro step's end) by iterating its unknowns, the
+    members' outputs that drive members' inputs (kernel.h: mk_loop)."""
+
+    members: tuple[str, ...]  # in stepping order; one process steps them all
+    unknowns: tuple[tuple[str, str], ...]  # (member, output)
+    # (member, input, index of the unknown driving it, the connection's linear factor)
+    inputs: tuple[tuple[str, str, int, float], ...]
+    structure: tuple[tuple[int, ...], ...]  # [i][j]: EDGE_* of d unknown i / d unknown j
+    cycle: str  # one cycle through it, "a.y -> b.u -> b.y -> a.u -> a.y", for messages
+    derivatives: bool  # the Jacobian from directional derivatives (else finite differences)
+
+    @property
+    def assumed(self) -> bool:
+        """Whether an entry rests on an FMU that declares no dependencies (the run tests it)."""
+        return any(EDGE_ASSUMED in row for row in self.structure)
+
+
 @dataclass(frozen=True)
 class PlanComponent:
     name: str
@@ -163,6 +199,7 @@ class Plan:
     record_errors: tuple[tuple[str, str, str, str], ...] = ()
     # how the results hold each `record` column (fmuinfo.recorded_as); empty: every one a float64
     record_types: tuple[str, ...] = ()
+    loops: tuple[Loop, ...] = ()  # algebraic loops, solved at communication points (Scenario.loops)
     # iterated macro steps (strong coupling, Scenario.iteration): every macro step repeated from saved
     # FMU states, relaxed windows as in start-up, until its coupled samples settle; None: explicit
     iteration: Iteration | None = None
@@ -219,6 +256,8 @@ class Plan:
                 lines.append(f"  {lk.source}.{o} -> {lk.consumer}.{i}: order {lk.order}, {how}{described(t)}")
         for s in self.stimuli:
             lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
+        for lp in self.loops:
+            lines.append(f"  algebraic loop {lp.cycle}: {', '.join(lp.members)}")
         if self.iteration is not None:
             it = self.iteration
             lines.append(
@@ -258,22 +297,61 @@ def build_plan(
     """Schedule `sc`, a valid scenario (`master.scenario.check` finds no problem: the planner keeps
     no rule of its own). `variables[component]` are the variables of its FMU (FMI 3 arrays with
     their shapes: links and the record name each element, `fmuinfo.element_names`)."""
-    capabilities = capabilities or {}
-    names = [c.name for c in sc.components]
+    caps = {c.name: (capabilities or {}).get(c.name, Capability()) for c in sc.components}
     H = Fraction(sc.macro_step)
-    start = Fraction(sc.start_time)
-    steps = (Fraction(sc.stop_time) - start) / H
+    steps = (Fraction(sc.stop_time) - Fraction(sc.start_time)) / H
     assert steps.denominator == 1 and steps > 0, "an unchecked scenario (master.scenario.check)"
-    n_macro = int(steps)
-
-    # stepping order
-    order = list(sc.order) if sc.coupling == "gauss-seidel" and sc.order else names
-    rank = {n: i for i, n in enumerate(order)}
-
     notes: list[str] = []
+    comps = _components(sc, caps, notes)
+    links = _links(sc, variables, caps, comps)
+    startup_steps, startup_sweeps = _startup(sc, caps, links, notes)
+    for name, pc in comps.items():  # what an interpolating FMU is handed: its links' highest order
+        if pc.interpolate_inputs:
+            orders = [lk.order for lk in links if lk.consumer == name]
+            comps[name] = dataclasses.replace(pc, derivative_order=max(orders, default=0))
+    loops, fmu_notes = _loops(sc, variables, caps, links, notes)
+    record, types = _recording(sc, variables, caps, notes)
+    exclusive, tool_notes = _processes(sc, caps, notes)
+    return Plan(
+        scenario=sc,
+        components=tuple(comps[n] for n in stepping_order(sc)),
+        links=tuple(links),
+        stimuli=tuple(sc.stimuli),
+        n_macro=int(steps),
+        record=record,
+        record_types=types,
+        record_every=1 if sc.record_interval is None else int(Fraction(sc.record_interval) / H),
+        macro_clock=Clock.make(Fraction(sc.start_time), H, 1),
+        notes=tuple(notes),
+        fmu_notes=fmu_notes + tool_notes,
+        startup_steps=startup_steps if startup_sweeps else 0,
+        startup_sweeps=startup_sweeps,
+        exclusive=exclusive,
+        iteration=sc.iteration,
+        record_errors=tuple(
+            (lk.source, o, lk.consumer, i)
+            for lk in links
+            if lk.estimated
+            for o, i in zip(lk.outputs, lk.inputs, strict=True)
+        )
+        if sc.record_coupling_errors
+        else (),
+        loops=loops,
+    )
+
+
+def stepping_order(sc: Scenario) -> list[str]:
+    """The components in the order they step: Gauss-Seidel's order, else the scene's."""
+    names = [c.name for c in sc.components]
+    return list(sc.order) if sc.coupling == Scheme.GAUSS_SEIDEL and sc.order else names
+
+
+def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> dict[str, PlanComponent]:
+    """Each component's step ratio and clock, and whether it takes its inputs as polynomials."""
+    H, start = Fraction(sc.macro_step), Fraction(sc.start_time)
     comps: dict[str, PlanComponent] = {}
     for c in sc.components:
-        cap = capabilities.get(c.name, Capability())
+        cap = caps[c.name]
         interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs)
         if c.interpolate_inputs and not interp:
             notes.append(
@@ -287,13 +365,22 @@ def build_plan(
                 f"{float(H / c.step_ratio):g} s is its internal step"
             )
         comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0)
+    return comps
 
-    # links: group connections by (source, consumer, order)
+
+def _links(
+    sc: Scenario,
+    variables: dict[str, dict[str, VariableInfo]],
+    caps: dict[str, Capability],
+    comps: dict[str, PlanComponent],
+) -> list[Link]:
+    """The connections grouped by (source, consumer, order, kind) into links."""
+    rank = {n: i for i, n in enumerate(stepping_order(sc))}
     groups: dict[tuple[str, str, int, str], list[tuple[str, str, Transformation | None]]] = {}
     for cn in sc.connections:
         out = variables[cn.start_component][cn.start_connector]
         inp = variables[cn.end_component][cn.end_connector]
-        kind = value_kind(out, capabilities.get(cn.start_component, Capability()).fmi_version)
+        kind = value_kind(out, caps[cn.start_component].fmi_version)
         order_ = sc.component(cn.end_component).extrapolation_order
         order_ = order_ if cn.extrapolation_order is None else cn.extrapolation_order
         if kind not in CONTINUOUS:
@@ -302,51 +389,146 @@ def build_plan(
         outs, ins = element_names(cn.start_connector, out.shape), element_names(cn.end_connector, inp.shape)
         pairs = [(o, i, cn.transformation) for o, i in zip(outs, ins, strict=True)]
         groups.setdefault((cn.start_component, cn.end_component, order_, kind), []).extend(pairs)
-    links = []
-    startup_steps = 0
-    for (src, dst, order_, kind), pairs in groups.items():
-        first = sc.coupling == "gauss-seidel" and rank[src] < rank[dst]
-        lk = Link(
+    return [
+        Link(
             src,
             dst,
             tuple(p[0] for p in pairs),
             tuple(p[1] for p in pairs),
             order_,
-            first,
+            sc.coupling == Scheme.GAUSS_SEIDEL and rank[src] < rank[dst],
             comps[src].ratio,
             comps[dst].ratio,
             kind,
             tuple(p[2] for p in pairs) if any(p[2] for p in pairs) else (),
         )
-        links.append(lk)
+        for (src, dst, order_, kind), pairs in groups.items()
+    ]
+
+
+def _startup(
+    sc: Scenario, caps: dict[str, Capability], links: list[Link], notes: list[str]
+) -> tuple[int, int]:
+    """(start-up macro steps, sweeps of each): the paper's step 3, where the links' orders are not
+    yet reached and every FMU can save its state."""
+    startup_steps = 0
+    start, H = Fraction(sc.start_time), Fraction(sc.macro_step)
+    for lk in links:
         su = lk.startup()
         startup_steps = max(startup_steps, len(su))
         if su:
             steps = ", ".join(f"order {o} in macro step {n}" for n, o in su)
             notes.append(
-                f"start-up: {src} -> {dst} ({', '.join(lk.inputs)}) uses {steps}; "
-                f"full order {order_} from t = {float(start + len(su) * H):g} s"
+                f"start-up: {lk.source} -> {lk.consumer} ({', '.join(lk.inputs)}) uses {steps}; "
+                f"full order {lk.order} from t = {float(start + len(su) * H):g} s"
             )
-    startup_sweeps = 0
-    if startup_steps:
-        if all(capabilities.get(n, Capability()).can_get_set_state for n in names):
-            startup_sweeps = max(lk.order for lk in links)
-            if sc.iteration is None:  # iterated, every macro step is repeated until it settles
-                notes.append(
-                    f"start-up: macro steps 0..{startup_steps - 1} are repeated {startup_sweeps} time(s) "
-                    "from saved FMU states with interpolation over the step (whole system integrated "
-                    "together)"
-                )
-        else:
-            notes.append("start-up: not every FMU can save its state, so start-up steps are not repeated")
-    for name, pc in comps.items():
-        if pc.interpolate_inputs:
-            orders = [lk.order for lk in links if lk.consumer == name]
-            comps[name] = PlanComponent(pc.name, pc.ratio, pc.step, pc.clock, True, max(orders, default=0))
+    if not startup_steps:
+        return 0, 0
+    if not all(cap.can_get_set_state for cap in caps.values()):
+        notes.append("start-up: not every FMU can save its state, so start-up steps are not repeated")
+        return startup_steps, 0
+    sweeps = max(lk.order for lk in links)
+    if sc.iteration is None:  # iterated, every macro step is repeated until it settles
+        notes.append(
+            f"start-up: macro steps 0..{startup_steps - 1} are repeated {sweeps} time(s) from "
+            "saved FMU states with interpolation over the step (whole system integrated together)"
+        )
+    return startup_steps, sweeps
 
-    # recording
+
+def _loops(
+    sc: Scenario,
+    variables: dict[str, dict[str, VariableInfo]],
+    caps: dict[str, Capability],
+    links: list[Link],
+    notes: list[str],
+) -> tuple[tuple[Loop, ...], tuple[tuple[str, str], ...]]:
+    """The algebraic loops (cycles of ports through connections and direct feedthrough, merged where
+    they share a component) and, once per FMU file, a note on the dependencies it does not declare."""
+    pairs = [
+        (lk.source, o, lk.consumer, i, t)
+        for lk in links
+        for n, (o, i) in enumerate(zip(lk.outputs, lk.inputs, strict=True))
+        for t in [lk.transformations[n] if lk.transformations else None]
+    ]
+    edges: dict[tuple[str, str], list[tuple[str, str]]] = {}
+    for src, o, dst, i, _ in pairs:
+        edges.setdefault((src, o), []).append((dst, i))
+    ports = {(dst, i) for _, _, dst, i, _ in pairs}
+    for c in sc.components:
+        for inp in sorted(i for comp, i in ports if comp == c.name):
+            base = inp.split("[")[0]  # an array element y[2]: its array's dependencies
+            for out in variables[c.name].values():
+                if out.causality == "output" and base in caps[c.name].depends(out.name, variables[c.name]):
+                    for o in element_names(out.name, out.shape):
+                        edges.setdefault((c.name, inp), []).append((c.name, o))
+    cycles = [scc for scc in strongly_connected(edges) if len(scc) > 1 or scc[0] in edges.get(scc[0], [])]
+    groups: list[set[str]] = []
+    described: list[str] = []
+    for scc in cycles:  # components of port cycles that share a component form one loop
+        members = {c for c, _ in scc}
+        joined = [g for g in groups if g & members]
+        for g in joined:
+            groups.remove(g)
+            members |= g
+        groups.append(members)
+        described.append(" -> ".join(f"{c}.{v}" for c, v in cycle_in(scc, edges)))
+    order = stepping_order(sc)
+    loops = []
+    for members in groups:
+        ranked = tuple(n for n in order if n in members)
+        unknowns = tuple(dict.fromkeys((s, o) for s, o, d, _, _ in pairs if s in members and d in members))
+        index = {u: n for n, u in enumerate(unknowns)}
+        inputs = tuple(
+            (d, i, index[(s, o)], t.factor if t is not None and t.kind == "linear" else 1.0)
+            for s, o, d, i, t in pairs
+            if s in members and d in members
+        )
+        structure = [[EDGE_NONE] * len(unknowns) for _ in unknowns]
+        for row, (comp, out) in enumerate(unknowns):
+            depends = caps[comp].depends(out.split("[")[0], variables[comp])
+            assumed = caps[comp].dependencies is None or out.split("[")[0] in caps[comp].assumed
+            for d, i, col, _ in inputs:
+                if d == comp and i.split("[")[0] in depends:
+                    structure[row][col] = EDGE_ASSUMED if assumed else EDGE_DECLARED
+        scalar = all("[" not in o for _, o in unknowns) and all("[" not in i for _, i, _, _ in inputs)
+        derivatives = scalar and all(caps[m].directional_derivatives for m in ranked)
+        cycle = next(d for d, scc in zip(described, cycles, strict=True) if {c for c, _ in scc} <= members)
+        loops.append(Loop(ranked, unknowns, inputs, tuple(tuple(r) for r in structure), cycle, derivatives))
+    how = {"newton": "Newton's method", "fixed-point": "Anderson-accelerated fixed-point iteration"}
+    for lp in loops:
+        jacobian = "directional derivatives" if lp.derivatives else "finite differences"
+        jacobian = f", the Jacobian from {jacobian}" if sc.loops.method == "newton" else ""
+        notes.append(
+            f"algebraic loop {lp.cycle}: solved at every communication point by {how[sc.loops.method]}"
+            f"{jacobian} to a tolerance of {sc.loops.tolerance:g}, "
+            f"at most {sc.loops.max_iterations} iterations"
+        )
+    fmu_notes: dict[str, str] = {}
+    for lp in loops:
+        for m in lp.members:
+            open_outputs = sorted(
+                out for row, (comp, out) in enumerate(lp.unknowns)
+                if comp == m and EDGE_ASSUMED in lp.structure[row]
+            )  # fmt: skip
+            if open_outputs:
+                path = str(sc.component(m).fmu_path)
+                fmu_notes.setdefault(
+                    path,
+                    f"{m}: {Path(path).name} declares no dependencies of {', '.join(open_outputs)}: "
+                    "taken, as FMI says, to depend directly on every input, which closes an algebraic "
+                    "loop; the run tests it at the start and iterates only the dependencies it finds",
+                )
+    return tuple(loops), tuple(fmu_notes.items())
+
+
+def _recording(
+    sc: Scenario, variables: dict[str, dict[str, VariableInfo]], caps: dict[str, Capability], notes: list[str]
+) -> tuple[tuple[tuple[str, str], ...], tuple[str, ...]]:
+    """The recorded columns (an array a column per element) and how the results hold each."""
+
     def can_record(comp: str, v: VariableInfo) -> bool:
-        return recordable(v.fmi_type or v.type, capabilities.get(comp, Capability()).fmi_version, v.shape)
+        return recordable(v.fmi_type or v.type, caps[comp].fmi_version, v.shape)
 
     record = tuple(sc.record)
     if not record:  # every output the runtime can record (arrays too); a note names the others
@@ -364,18 +546,23 @@ def build_plan(
         names = element_names(v.name, v.shape) if position is None else [var]
         columns.extend((comp, name) for name in names)
         types.extend([recorded_as(v.fmi_type or v.type)] * len(names))
-    record = tuple(columns)
-    every = 1 if sc.record_interval is None else int(Fraction(sc.record_interval) / H)
+    return tuple(columns), tuple(types)
 
+
+def _processes(
+    sc: Scenario, caps: dict[str, Capability], notes: list[str]
+) -> tuple[tuple[tuple[str, ...], ...], tuple[tuple[str, str], ...]]:
+    """(components whose FMU may be instantiated once per process, by FMU file; notes on FMUs that
+    need their tool)."""
     by_file: dict[str, list[str]] = {}
     needs_tool: dict[str, list[str]] = {}
     for c in sc.components:
-        cap = capabilities.get(c.name, Capability())
+        cap = caps[c.name]
         if cap.once_per_process:
             by_file.setdefault(str(c.fmu_path), []).append(c.name)
         if cap.needs_execution_tool:
             needs_tool.setdefault(str(c.fmu_path), []).append(c.name)
-    fmu_notes = tuple(
+    tool_notes = tuple(
         (fmu, f"{', '.join(names)}: {Path(fmu).name} declares needsExecutionTool=\"true\": the run fails "
          "unless that tool is installed here")
         for fmu, names in needs_tool.items()
@@ -385,29 +572,4 @@ def build_plan(
         notes.append(
             f"{', '.join(names)}: their FMU can be instantiated only once per process: one worker each"
         )
-
-    return Plan(
-        scenario=sc,
-        components=tuple(comps[n] for n in order),
-        links=tuple(links),
-        stimuli=tuple(sc.stimuli),
-        n_macro=n_macro,
-        record=record,
-        record_types=tuple(types),
-        record_every=every,
-        macro_clock=Clock.make(start, H, 1),
-        notes=tuple(notes),
-        fmu_notes=fmu_notes,
-        startup_steps=startup_steps if startup_sweeps else 0,
-        startup_sweeps=startup_sweeps,
-        exclusive=exclusive,
-        iteration=sc.iteration,
-        record_errors=tuple(
-            (lk.source, o, lk.consumer, i)
-            for lk in links
-            if lk.estimated
-            for o, i in zip(lk.outputs, lk.inputs, strict=True)
-        )
-        if sc.record_coupling_errors
-        else (),
-    )
+    return exclusive, tool_notes

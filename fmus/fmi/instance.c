@@ -13,6 +13,7 @@ int *model_integers(Instance *inst) { return inst->integers; }
 int *model_booleans(Instance *inst) { return inst->booleans; }
 int64_t *model_int64s(Instance *inst) { return inst->int64s; }
 uint64_t *model_uint64s(Instance *inst) { return inst->uint64s; }
+double model_time(Instance *inst) { return inst->core->time; }
 const char *model_string(Instance *inst, int slot) { return inst->strings + (size_t)slot * STRING_CAPACITY; }
 
 int model_set_string(Instance *inst, int slot, const char *value) {

@@ -144,6 +144,8 @@ int *model_integers(Instance *inst);
 int *model_booleans(Instance *inst);
 int64_t *model_int64s(Instance *inst);
 uint64_t *model_uint64s(Instance *inst);
+/* The instance's current time: the start time during initialization (MODEL.initialize). */
+double model_time(Instance *inst);
 const char *model_string(Instance *inst, int slot);
 /* Writes a String slot, cut to STRING_CAPACITY - 1 bytes; returns 1 if it was cut. */
 int model_set_string(Instance *inst, int slot, const char *value);

@@ -20,6 +20,7 @@ from master.runtime.tables import (
     coupling_errors,
     iteration_counts,
     layout,
+    loop_stats,
     pacing_stats,
 )
 from master.schedule import Plan
@@ -79,6 +80,10 @@ class InProcessBackend:
     def stopped(self) -> tuple[str, float] | None:
         """(component, time in s) if an FMU ended the simulation, else None."""
         return self.compiled.stopped() if self.compiled is not None else None
+
+    def loop_stats(self) -> dict[str, dict[str, float]]:
+        """The counters of each algebraic loop (`loop_stats`)."""
+        return loop_stats(self.plan, self.compiled.memory) if self.compiled is not None else {}
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

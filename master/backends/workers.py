@@ -43,6 +43,7 @@ from master.runtime.tables import (
     coupling_errors,
     iteration_counts,
     layout,
+    loop_stats,
     pacing_stats,
     ring_rows,
     ring_texts,
@@ -62,11 +63,16 @@ RING_ROWS = (256, 16384)  # ... and between these many rows
 
 
 def worker_groups(plan: Plan) -> list[list[str]]:
-    """Component names per worker, in stepping order: one worker per scenario group or lone component."""
+    """Component names per worker, in stepping order: one worker per scenario group or lone component,
+    the members of an algebraic loop in one (they are solved together, Plan.loops)."""
+    key = {pc.name: plan.scenario.component(pc.name).group for pc in plan.components}
+    key = {n: f"group:{g}" if g else f"component:{n}" for n, g in key.items()}
+    for lp in plan.loops:  # every key of a loop's members becomes its first member's
+        joined = {key[m] for m in lp.members}
+        key = {n: key[lp.members[0]] if k in joined else k for n, k in key.items()}
     groups: dict[str, list[str]] = {}
     for pc in plan.components:
-        g = plan.scenario.component(pc.name).group
-        groups.setdefault(f"group:{g}" if g else f"component:{pc.name}", []).append(pc.name)
+        groups.setdefault(key[pc.name], []).append(pc.name)
     return separate(list(groups.values()), plan)
 
 
@@ -414,6 +420,10 @@ class WorkerBackend:
         if self.memory is None or self.running:  # known once every worker has come back
             return None
         return shared_stop(self.plan, self.memory)
+
+    def loop_stats(self) -> dict[str, dict[str, float]]:
+        """The counters of each algebraic loop (`loop_stats`)."""
+        return loop_stats(self.plan, self.memory) if self.memory is not None else {}
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

@@ -37,7 +37,7 @@ from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
-from master.scenario.model import Iteration, Scenario
+from master.scenario.model import Iteration, Scenario, Scheme
 
 EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
 SOLVER_NAMES = {1: "euler", 2: "ab2", 3: "ab3", 4: "rk4", 5: "si-euler", 6: "si-midpoint"}
@@ -56,7 +56,7 @@ class Config:
     ctrl_solver: int = EULER
     backend: str = "serial"
     single_rate: bool = False  # every component with the mechanics solver at the macro step
-    coupling: str | None = None  # "jacobi" or "gauss-seidel"; None: the scene's
+    coupling: Scheme | None = None  # None: the scene's
     # Gauss-Seidel with the control stepping first: the mechanics then interpolate the control's
     # new samples (order mech_order) instead of holding them, over mech_substeps solver steps
     # per macro step (the polynomials handed to the FMU: each substep sees its own time's force)
@@ -113,7 +113,7 @@ PROFILES: dict[str, Profile] = {
         mechanics=("mechanics",),
         control=("hydraulics",),
         record_interval=F(1, 100),
-        baseline=Config("single-rate", F(2, 10000), coupling="jacobi"),  # nearest to monolithic AB3
+        baseline=Config("single-rate", F(2, 10000), coupling=Scheme.JACOBI),  # nearest to monolithic AB3
         single_steps=(F(1, 10000), F(2, 10000), F(5, 10000), F(1, 1000)),
         macro_steps=(F(5, 10000), F(1, 1000), F(2, 1000)),
         base=Config("dual-rate", F(1, 1000), ratio=5, order=1),
@@ -207,7 +207,7 @@ def configurations(p: Profile, quick: bool = False) -> list[Config]:
             for s in (SI_EULER, SI_MIDPOINT) for h in p.macro_steps]  # fmt: skip
     out += [dataclasses.replace(b, family="mech-solver", mech_solver=AB2)]
     out += [dataclasses.replace(c, family="backend", backend="parallel") for c in (p.baseline, b)]
-    for coupling in ("jacobi", "gauss-seidel"):
+    for coupling in tuple(Scheme):
         out += [dataclasses.replace(c, family="coupling", coupling=coupling) for c in (p.baseline, b)
                 if c.coupling != coupling]  # fmt: skip
     return _unique(out)
@@ -225,7 +225,7 @@ def _generic_configurations(p: Profile, quick: bool) -> list[Config]:
     out += [
         dataclasses.replace(b, family="order", order=k, macro_step=h) for k in range(4) for h in p.macro_steps
     ]
-    out += [dataclasses.replace(b, family="coupling", coupling=c) for c in ("jacobi", "gauss-seidel")]
+    out += [dataclasses.replace(b, family="coupling", coupling=c) for c in tuple(Scheme)]
     out += [dataclasses.replace(b, family="backend", backend="parallel")]
     return out
 
@@ -249,7 +249,9 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         return dataclasses.replace(
             sc,
             coupling=coupling,
-            order=(sc.order or tuple(x.name for x in sc.components)) if coupling == "gauss-seidel" else (),
+            order=(sc.order or tuple(x.name for x in sc.components))
+            if coupling == Scheme.GAUSS_SEIDEL
+            else (),
             iteration=iteration(sc, c),
             components=comps,
             connections=conns,
@@ -275,8 +277,8 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
             )
         )
     conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
-    coupling = "gauss-seidel" if c.control_first else c.coupling or sc.coupling
-    order = sc.order or tuple(x.name for x in sc.components) if coupling == "gauss-seidel" else sc.order
+    coupling = Scheme.GAUSS_SEIDEL if c.control_first else c.coupling or sc.coupling
+    order = sc.order or tuple(x.name for x in sc.components) if coupling == Scheme.GAUSS_SEIDEL else sc.order
     if c.control_first:
         order = (*p.control, *p.mechanics)
     return dataclasses.replace(
@@ -339,9 +341,11 @@ def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
                                          order=c.order if ctrl else c.mech_order if mech else 0,
                                          input_mode=mode))  # fmt: skip
     coupling = (
-        "gauss-seidel" if c.control_first else c.coupling or ("gauss-seidel" if lin.first else "jacobi")
+        Scheme.GAUSS_SEIDEL
+        if c.control_first
+        else c.coupling or (Scheme.GAUSS_SEIDEL if lin.first else Scheme.JACOBI)
     )
-    first = (lin.first or tuple(x.name for x in lin.components)) if coupling == "gauss-seidel" else ()
+    first = (lin.first or tuple(x.name for x in lin.components)) if coupling == Scheme.GAUSS_SEIDEL else ()
     if c.control_first:
         first = (*p.control, *p.mechanics)
     return dataclasses.replace(

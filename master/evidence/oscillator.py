@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
+from master.scenario.model import Scheme
+
 
 @dataclass(frozen=True)
 class TwoMass:
@@ -126,13 +128,13 @@ def scene(
     step_ratios: tuple[int, int] = (1, 1),
     z0: np.ndarray = SET_A_Z0,
     path: Path | None = None,
-    coupling: str = "jacobi",
+    coupling: Scheme = Scheme.JACOBI,
     interpolate: tuple[bool, bool] = (False, False),
     substeps: int = 0,
 ):
     """The benchmark as a Scenario of two msd FMUs (the split as in `split_scheme`).
 
-    Records x and v of both masses.  coupling: "jacobi" or "gauss-seidel" (mass1 first);
+    Records x and v of both masses.  coupling: Jacobi or Gauss-Seidel (mass1 first);
     interpolate: hand the input polynomials to mass1 / mass2; substeps: solver steps inside each
     communication step (0: one); path: the scenario's file name (default: the msd model source).
     """

@@ -3,6 +3,7 @@
 #define _GNU_SOURCE /* syscall (futex), clock_nanosleep */
 #include "kernel.h"
 
+#include <float.h>
 #include <limits.h>
 #include <linux/futex.h>
 #include <math.h>
@@ -35,6 +36,10 @@ typedef int fmi3_get_int32(void *, const uint32_t *, size_t, int32_t *, size_t);
 typedef int fmi3_get_boolean(void *, const uint32_t *, size_t, bool *, size_t);
 typedef int fmi3_set_int32(void *, const uint32_t *, size_t, const int32_t *, size_t);
 typedef int fmi3_set_boolean(void *, const uint32_t *, size_t, const bool *, size_t);
+typedef int fmi2_get_directional_derivative(void *, const uint32_t *, size_t, const uint32_t *, size_t, const double *,
+                                            double *);
+typedef int fmi3_get_directional_derivative(void *, const uint32_t *, size_t, const uint32_t *, size_t, const double *,
+                                            size_t, double *, size_t);
 typedef int fmi_get_state(void *, void **);
 typedef int fmi_set_state(void *, void *);
 typedef int fmi_free_state(void *, void **);
@@ -62,6 +67,7 @@ void mk_layout(int64_t *sizes) {
     sizes[8] = (int64_t)sizeof(mk_shared);
     sizes[9] = (int64_t)sizeof(mk_call);
     sizes[10] = (int64_t)sizeof(mk_transform);
+    sizes[11] = (int64_t)sizeof(mk_loop);
 }
 
 void mk_constants(int64_t *values) {
@@ -73,6 +79,10 @@ void mk_constants(int64_t *values) {
     values[5] = MK_TRANSFORM_NONE;
     values[6] = MK_TRANSFORM_LINEAR;
     values[7] = MK_TRANSFORM_MAP;
+    values[8] = MK_LOOP_NEWTON;
+    values[9] = MK_LOOP_FIXED_POINT;
+    values[10] = MK_EDGE_ASSUMED;
+    values[11] = MK_LOOP_STATS;
 }
 
 static int64_t now_ns(void) {
@@ -869,20 +879,13 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     return MK_DONE;
 }
 
-/* Resample component ci after macro step n (kernel.h): its linked inputs set to the sources' final
- * samples at the macro step's end, its outputs read again into its own sample there. */
-static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
+/* Component ci's linked inputs set to its sources' samples at the end of macro step n (n = -1: the
+ * start time): the final samples of every numeric and text link. */
+static int32_t set_linked(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
-    mk_shared *sh = k->shared;
-    for (int32_t l = 0; sh && l < c->n_links + c->n_string_links; l++) {
-        const mk_link *lk = l < c->n_links ? &c->links[l] : &c->string_links[l - c->n_links];
-        if (wait_for(k, lk->final ? &sh->published[lk->source] : &sh->stepped[lk->source], n + 1)) return aborted(k);
-    }
-    const int64_t j = (n + 1) * c->ratio;
-    int64_t t0 = now_ns();
+    const int64_t j = (n + 1) * c->ratio, t0 = now_ns();
     int st = STATUS_OK;
     int32_t call = MK_CALL_SET_REAL;
-    mark_busy(k, ci);
     for (int32_t l = 0; st <= STATUS_OK && l < c->n_links; l++) {
         const mk_link *lk = &c->links[l];
         const mk_component *src = &k->components[lk->source];
@@ -906,18 +909,37 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
         const bool strings = lk->slot0 < c->n_in_string; /* a link carries one kind */
         st = set_texts(c, c->in_string_vrs + lk->slot0, to, strings ? lk->n_cols : 0, strings ? 0 : lk->n_cols, &call);
     }
-    if (st > STATUS_OK) {
-        mark_idle(k);
-        return fail(k, MK_FMI_ERROR, ci, call, st, j - 1);
-    }
+    *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    return st > STATUS_OK ? fail(k, MK_FMI_ERROR, ci, call, st, j > 0 ? j - 1 : 0) : MK_DONE;
+}
+
+/* Component ci's outputs that depend on inputs read again into its sample at the end of macro step n
+ * (n = -1: the start time): its history row and its text outputs. */
+static int32_t read_linked(mk_kernel *k, int32_t ci, int64_t n) {
+    mk_component *c = &k->components[ci];
+    const int64_t j = (n + 1) * c->ratio, t0 = now_ns();
     double *row = c->hist + (j % c->cap) * c->n_out;
     int32_t code = MK_DONE;
-    if (c->resample_outputs) code = read_outputs(k, ci, row, j - 1, j);
-    if (code == MK_DONE && c->resample_texts) code = read_strings(k, ci, c->strings, j - 1, j);
-    mark_idle(k);
+    if (c->resample_outputs) code = read_outputs(k, ci, row, j > 0 ? j - 1 : 0, j);
+    if (code == MK_DONE && c->resample_texts) code = read_strings(k, ci, c->strings, j > 0 ? j - 1 : 0, j);
     *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
     if (code != MK_DONE) return code;
     return c->resample_outputs ? check_sample(k, ci, row, j) : MK_DONE;
+}
+
+/* Before component ci resamples after macro step n: the final samples of its sources, except those
+ * of `loop` (solved together with it). */
+static int32_t wait_final(mk_kernel *k, int32_t ci, int64_t n, const mk_loop *loop) {
+    mk_component *c = &k->components[ci];
+    mk_shared *sh = k->shared;
+    for (int32_t l = 0; sh && l < c->n_links + c->n_string_links; l++) {
+        const mk_link *lk = l < c->n_links ? &c->links[l] : &c->string_links[l - c->n_links];
+        bool member = false;
+        for (int32_t m = 0; loop && m < loop->n_members; m++) member |= loop->members[m] == lk->source;
+        if (member) continue;
+        if (wait_for(k, lk->final ? &sh->published[lk->source] : &sh->stepped[lk->source], n + 1)) return aborted(k);
+    }
+    return MK_DONE;
 }
 
 /* An iterated sweep: the sources that go first have completed this sweep (fill_inputs reads them). */
@@ -927,6 +949,337 @@ static int32_t wait_swept(mk_kernel *k, const mk_component *c) {
         if (lk->ahead && wait_for(k, &k->shared->swept[lk->source], k->sweeps)) return aborted(k);
     }
     return MK_DONE;
+}
+
+/* Resample component ci after macro step n (kernel.h): its linked inputs set to the sources' final
+ * samples at the macro step's end, its outputs read again into its own sample there. */
+static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
+    int32_t code = wait_final(k, ci, n, NULL);
+    if (code) return code;
+    mark_busy(k, ci);
+    code = set_linked(k, ci, n);
+    if (code == MK_DONE) code = read_linked(k, ci, n);
+    mark_idle(k);
+    return code;
+}
+
+/* -- algebraic loops (kernel.h: mk_loop) ---------------------------------------------------------- */
+
+/* Unknown i of loop L in its member's sample at the end of macro step n. */
+static double *unknown_at(const mk_kernel *k, const mk_loop *L, int32_t i, int64_t n) {
+    const mk_component *c = &k->components[L->members[L->unknown_member[i]]];
+    return c->hist + (((n + 1) * c->ratio) % c->cap) * c->n_out + L->unknown_column[i];
+}
+
+/* fx = F(x): x into the histories, every member's linked inputs set from them, then every member's
+ * outputs read (Newton's F); or, for the fixed point, member by member in turn, each reading the
+ * samples its predecessors just read (Gauss-Seidel: F then depends on the unknowns that drive
+ * earlier members alone, a ring on one). */
+static int32_t loop_evaluate(mk_kernel *k, mk_loop *L, int64_t n, const double *x, double *fx) {
+    int32_t code = MK_DONE;
+    const bool in_turn = L->method == MK_LOOP_FIXED_POINT;
+    for (int32_t i = 0; i < L->n_unknowns; i++) *unknown_at(k, L, i, n) = x[i];
+    for (int32_t m = 0; code == MK_DONE && m < L->n_members; m++) {
+        code = set_linked(k, L->members[m], n);
+        if (in_turn && code == MK_DONE) code = read_linked(k, L->members[m], n);
+    }
+    for (int32_t m = 0; !in_turn && code == MK_DONE && m < L->n_members; m++) code = read_linked(k, L->members[m], n);
+    for (int32_t i = 0; i < L->n_unknowns; i++) fx[i] = *unknown_at(k, L, i, n);
+    L->stats[MK_LOOP_EVALUATIONS]++;
+    return code;
+}
+
+/* A loop the probe found without cycle: each member once in `order` (its sources final before it),
+ * then again those driven by members after them (whose outputs do not depend on those inputs: only
+ * the inputs, and the inputs a history holds, change). */
+static int32_t loop_sequence(mk_kernel *k, mk_loop *L, int64_t n) {
+    int32_t code = MK_DONE;
+    for (int32_t p = 0; code == MK_DONE && p < L->n_members; p++) {
+        code = set_linked(k, L->members[L->order[p]], n);
+        if (code == MK_DONE) code = read_linked(k, L->members[L->order[p]], n);
+    }
+    for (int32_t p = 0; code == MK_DONE && p < L->n_members; p++)
+        if (L->reset[L->order[p]]) { /* read again too: a recorded input may lie in its history */
+            code = set_linked(k, L->members[L->order[p]], n);
+            if (code == MK_DONE) code = read_linked(k, L->members[L->order[p]], n);
+        }
+    L->stats[MK_LOOP_EVALUATIONS]++;
+    L->stats[MK_LOOP_ITERATIONS]++;
+    if (L->stats[MK_LOOP_MOST] < 1) L->stats[MK_LOOP_MOST] = 1;
+    return code;
+}
+
+static int get_directional_derivative(const mk_component *c, const uint32_t *unknowns, size_t n_unknowns,
+                                      const uint32_t *known, const double *seed, double *out) {
+    if (c->fmi == 3)
+        return ((fmi3_get_directional_derivative *)c->get_directional_derivative)(c->instance, unknowns, n_unknowns,
+                                                                                  known, 1, seed, 1, out, n_unknowns);
+    return ((fmi2_get_directional_derivative *)c->get_directional_derivative)(c->instance, unknowns, n_unknowns,
+                                                                              known, 1, seed, out);
+}
+
+/* jac = dF/dx at x (fx = F(x), the members' inputs set to x): from directional derivatives (each
+ * member input's seed times its connection's factor), else, or once a call fails, by forward
+ * differences (one evaluation per unknown). */
+static int32_t loop_jacobian(mk_kernel *k, mk_loop *L, int64_t n, const double *x, const double *fx, double *jac) {
+    const int32_t N = L->n_unknowns;
+    double *xp = L->work + 5 * N, *fp = L->work + 6 * N;
+    L->stats[MK_LOOP_JACOBIANS]++;
+    memset(jac, 0, sizeof(double) * (size_t)N * (size_t)N);
+    for (int32_t p = 0; L->derivatives && p < L->n_inputs; p++) {
+        const int32_t ci = L->members[L->input_member[p]];
+        const mk_component *c = &k->components[ci];
+        uint32_t vrs[N];
+        int32_t rows[N], count = 0;
+        for (int32_t i = 0; i < N; i++)
+            if (L->unknown_member[i] == L->input_member[p]) {
+                vrs[count] = L->unknown_vr[i];
+                rows[count++] = i;
+            }
+        const double seed = 1.0;
+        const int64_t t0 = now_ns();
+        int st = get_directional_derivative(c, vrs, (size_t)count, &L->input_vr[p], &seed, fp);
+        *k->components[ci].fmu_time += 1e-9 * (double)(now_ns() - t0);
+        if (st > STATUS_OK) { /* not this FMU's after all: finite differences from now on */
+            L->derivatives = 0;
+            memset(jac, 0, sizeof(double) * (size_t)N * (size_t)N);
+            break;
+        }
+        for (int32_t q = 0; q < count; q++) jac[rows[q] * N + L->input_unknown[p]] += L->input_factor[p] * fp[q];
+    }
+    if (L->derivatives) return MK_DONE;
+    for (int32_t col = 0; col < N; col++) {
+        memcpy(xp, x, sizeof(double) * (size_t)N);
+        xp[col] += sqrt(DBL_EPSILON) * fmax(1.0, fabs(x[col]));
+        const double d = xp[col] - x[col]; /* the increment as represented */
+        int32_t code = loop_evaluate(k, L, n, xp, fp);
+        if (code) return code;
+        for (int32_t i = 0; i < N; i++) jac[i * N + col] = (fp[i] - fx[i]) / d;
+    }
+    return MK_DONE;
+}
+
+/* LU factors of the n x n matrix a in place, rows exchanged as piv says; false if singular. */
+static bool lu_factor(double *a, int32_t *piv, int32_t n) {
+    for (int32_t c = 0; c < n; c++) {
+        int32_t p = c;
+        for (int32_t r = c + 1; r < n; r++)
+            if (fabs(a[r * n + c]) > fabs(a[p * n + c])) p = r;
+        piv[c] = p;
+        if (!(fabs(a[p * n + c]) > 0.0) || !isfinite(a[p * n + c])) return false;
+        if (p != c)
+            for (int32_t q = 0; q < n; q++) {
+                double t = a[c * n + q];
+                a[c * n + q] = a[p * n + q];
+                a[p * n + q] = t;
+            }
+        for (int32_t r = c + 1; r < n; r++) {
+            a[r * n + c] /= a[c * n + c];
+            for (int32_t q = c + 1; q < n; q++) a[r * n + q] -= a[r * n + c] * a[c * n + q];
+        }
+    }
+    return true;
+}
+
+static void lu_solve(const double *a, const int32_t *piv, int32_t n, double *b) {
+    for (int32_t c = 0; c < n; c++) {
+        double t = b[c];
+        b[c] = b[piv[c]];
+        b[piv[c]] = t;
+    }
+    for (int32_t r = 0; r < n; r++)
+        for (int32_t q = 0; q < r; q++) b[r] -= a[r * n + q] * b[q];
+    for (int32_t r = n - 1; r >= 0; r--) {
+        for (int32_t q = r + 1; q < n; q++) b[r] -= a[r * n + q] * b[q];
+        b[r] /= a[r * n + r];
+    }
+}
+
+/* The first solve's test of what the FMUs only assumed: entries of `jac` exactly zero where the
+ * dependency was assumed are dropped; if no cycle among the members is left, the loop becomes a
+ * sequence (kernel.h: mk_loop). */
+static void loop_probe(mk_loop *L, const double *jac) {
+    const int32_t N = L->n_unknowns, M = L->n_members;
+    for (int32_t e = 0; e < N * N; e++)
+        L->edges[e] = L->structure[e] == MK_EDGE_ASSUMED && jac[e] == 0.0 ? MK_EDGE_NONE : L->structure[e];
+    int32_t indegree[M], position[M];
+    bool drives[M * M]; /* drives[a * M + b]: an output of member a reaches an output of member b */
+    memset(drives, 0, sizeof drives);
+    for (int32_t i = 0; i < N; i++)
+        for (int32_t j = 0; j < N; j++)
+            if (L->edges[i * N + j] != MK_EDGE_NONE) drives[L->unknown_member[j] * M + L->unknown_member[i]] = true;
+    for (int32_t b = 0; b < M; b++) {
+        indegree[b] = 0;
+        for (int32_t a = 0; a < M; a++) indegree[b] += drives[a * M + b];
+    }
+    int32_t placed = 0;
+    for (bool progress = true; progress;) { /* Kahn, the lowest member first */
+        progress = false;
+        for (int32_t b = 0; b < M; b++) {
+            if (indegree[b] != 0) continue;
+            indegree[b] = -1;
+            position[b] = placed;
+            L->order[placed++] = b;
+            for (int32_t c = 0; c < M; c++) indegree[c] -= drives[b * M + c];
+            progress = true;
+            break;
+        }
+    }
+    L->sequential = placed == M;
+    for (int32_t m = 0; L->sequential && m < M; m++) L->reset[m] = 0;
+    for (int32_t p = 0; L->sequential && p < L->n_inputs; p++) {
+        const int32_t to = L->input_member[p], from = L->unknown_member[L->input_unknown[p]];
+        if (position[from] >= position[to]) L->reset[to] = 1;
+    }
+    L->stats[MK_LOOP_SEQUENTIAL] = L->sequential;
+}
+
+/* Anderson's acceleration of the fixed-point step x + r (type II, the last `memory` steps): dx =
+ * r - (dX + dR) g where g minimises |r - dR g|, dX and dR the differences of the iterates and of
+ * their residuals; on a linear loop of N unknowns it reaches the solution within N + 1 steps. */
+static void anderson(mk_loop *L, int32_t it, const double *x, const double *r, double *dx) {
+    const int32_t N = L->n_unknowns, M = L->memory;
+    double *x_old = L->work + 5 * N, *r_old = L->work + 4 * N;
+    double *dX = L->work + 7 * N + 2 * (size_t)N * N, *dR = dX + (size_t)M * N, *a = dR + (size_t)M * N;
+    if (it == 0) L->n_history = 0;
+    else { /* the newest differences last; the oldest dropped when the memory is full */
+        if (L->n_history == M) {
+            memmove(dX, dX + N, sizeof(double) * (size_t)(M - 1) * N);
+            memmove(dR, dR + N, sizeof(double) * (size_t)(M - 1) * N);
+            L->n_history--;
+        }
+        for (int32_t i = 0; i < N; i++) {
+            dX[L->n_history * N + i] = x[i] - x_old[i];
+            dR[L->n_history * N + i] = r[i] - r_old[i];
+        }
+        L->n_history++;
+    }
+    memcpy(x_old, x, sizeof(double) * (size_t)N);
+    memcpy(r_old, r, sizeof(double) * (size_t)N);
+    memcpy(dx, r, sizeof(double) * (size_t)N);
+    const int32_t m = L->n_history;
+    if (m == 0) return;
+    double g[m];
+    for (int32_t p = 0; p < m; p++) { /* normal equations dR' dR g = dR' r */
+        g[p] = 0.0;
+        for (int32_t i = 0; i < N; i++) g[p] += dR[p * N + i] * r[i];
+        for (int32_t q = 0; q < m; q++) {
+            double s = 0.0;
+            for (int32_t i = 0; i < N; i++) s += dR[p * N + i] * dR[q * N + i];
+            a[p * m + q] = s;
+        }
+    }
+    if (!lu_factor(a, L->pivot, m)) { /* dependent differences: start the memory again */
+        L->n_history = 0;
+        return;
+    }
+    lu_solve(a, L->pivot, m, g);
+    for (int32_t p = 0; p < m; p++)
+        for (int32_t i = 0; i < N; i++) dx[i] -= g[p] * (dX[p * N + i] + dR[p * N + i]);
+}
+
+/* Solve loop l at the end of macro step n (n = -1: the start time); MK_NOT_CONVERGED if it is not
+ * within max_iterations (mk_error: the loop, the largest relative residual, the iterations). */
+static int32_t solve_loop(mk_kernel *k, int32_t l, int64_t n) {
+    mk_loop *L = &k->loops[l];
+    const int32_t N = L->n_unknowns;
+    double *x = L->work, *fx = x + N, *r = x + 2 * N, *dx = x + 3 * N;
+    double *jac = x + 7 * N, *lu = jac + (size_t)N * N;
+    L->stats[MK_LOOP_SOLVES]++;
+    if (L->sequential) return loop_sequence(k, L, n);
+    for (int32_t i = 0; i < N; i++) x[i] = *unknown_at(k, L, i, n);
+    double residual = INFINITY, previous = INFINITY;
+    bool have_jacobian = false;
+    int32_t it = 0, code;
+    for (;; it++) {
+        if ((code = loop_evaluate(k, L, n, x, fx))) return code;
+        bool converged = true;
+        residual = 0.0;
+        for (int32_t i = 0; i < N; i++) {
+            r[i] = fx[i] - x[i];
+            double e = fabs(r[i]) / (1.0 + fabs(fx[i]));
+            if (!(e <= L->tolerance)) converged = false;
+            residual = isnan(e) || e > residual ? e : residual;
+        }
+        if (!L->probed) {
+            L->probed = 1;
+            bool assumed = false;
+            for (int32_t e = 0; e < N * N; e++) assumed |= L->structure[e] == MK_EDGE_ASSUMED;
+            if (assumed) {
+                if ((code = loop_jacobian(k, L, n, x, fx, jac))) return code;
+                loop_probe(L, jac);
+                if (L->sequential) {
+                    L->stats[MK_LOOP_ITERATIONS]++;
+                    return loop_sequence(k, L, n);
+                }
+                have_jacobian = true;
+                /* the probe's evaluations moved the members' inputs: evaluate at x again */
+                if ((code = loop_evaluate(k, L, n, x, fx))) return code;
+            }
+        }
+        if (converged) break;
+        if (it + 1 >= L->max_iterations) {
+            const mk_component *c = &k->components[L->members[0]];
+            L->stats[MK_LOOP_ITERATIONS] += it + 1;
+            fail(k, MK_NOT_CONVERGED, L->members[0], -1, 0, (n + 1) * c->ratio);
+            k->error.variable = l;
+            k->error.value = residual;
+            k->error.integer = (uint64_t)(it + 1);
+            return MK_NOT_CONVERGED;
+        }
+        memcpy(dx, r, sizeof(double) * (size_t)N);
+        if (L->method == MK_LOOP_NEWTON) {
+            /* the Jacobian kept from earlier points while the residual falls fast (a hundredth
+             * per step at least: slower is a stale Jacobian, a few iterations of Newton's rate) */
+            if (have_jacobian || !L->fresh || (it > 0 && !(residual <= 0.01 * previous))) {
+                if (!have_jacobian && (code = loop_jacobian(k, L, n, x, fx, jac))) return code;
+                have_jacobian = false;
+                for (int32_t i = 0; i < N; i++)
+                    for (int32_t j = 0; j < N; j++) lu[i * N + j] = (i == j) - jac[i * N + j];
+                L->fresh = lu_factor(lu, L->pivot, N);
+            }
+            if (L->fresh) lu_solve(lu, L->pivot, N, dx); /* singular: a plain fixed-point step */
+        } else
+            anderson(L, it, x, r, dx);
+        for (int32_t i = 0; i < N; i++) x[i] += dx[i];
+        previous = residual;
+    }
+    L->stats[MK_LOOP_ITERATIONS] += it + 1;
+    if (L->stats[MK_LOOP_MOST] < it + 1) L->stats[MK_LOOP_MOST] = it + 1;
+    if (residual > *L->worst) *L->worst = residual;
+    return MK_DONE;
+}
+
+/* Resample loop l after macro step n: its members' sources outside it final, then solved. */
+static int32_t resample_loop(mk_kernel *k, int32_t l, int64_t n) {
+    const mk_loop *L = &k->loops[l];
+    for (int32_t m = 0; m < L->n_members; m++)
+        if (wait_final(k, L->members[m], n, L)) return MK_ABORTED;
+    mark_busy(k, L->members[0]);
+    int32_t code = solve_loop(k, l, n);
+    mark_idle(k);
+    return code;
+}
+
+/* Resample entry r of the resampling order after macro step n, where this process steps it: a
+ * component or a loop (kernel.h); `due`: a row is recorded after it. */
+static int32_t resample_entry(mk_kernel *k, int32_t r, int64_t n, bool due) {
+    const int32_t i = k->resample_order[r];
+    if (i < 0) return k->components[k->loops[-1 - i].members[0]].local ? resample_loop(k, -1 - i, n) : MK_DONE;
+    if (!k->components[i].local || !(due || k->components[i].resample_always)) return MK_DONE;
+    return resample(k, i, n);
+}
+
+/* Publish the samples of entry r of the resampling order after macro step n (its members'). */
+static void publish_entry(mk_kernel *k, int32_t r, int64_t n) {
+    const int32_t i = k->resample_order[r];
+    if (i >= 0) {
+        if (k->components[i].local) publish(&k->shared->published[i], n + 1);
+        return;
+    }
+    const mk_loop *L = &k->loops[-1 - i];
+    for (int32_t m = 0; m < L->n_members; m++)
+        if (k->components[L->members[m]].local) publish(&k->shared->published[L->members[m]], n + 1);
 }
 
 /* Component ci through macro step n: its inputs, then its communication steps, outputs into its
@@ -974,7 +1327,7 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
                 ok = false;
                 if (d / scale > worst) {
                     worst = d / scale;
-                    *at = (mk_error){.code = MK_NOT_CONVERGED, .component = ci, .call = -1,
+                    *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
                                      .point = n * c->ratio, .variable = o, .value = d};
                 }
             }
@@ -984,7 +1337,7 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
                 ok = false;
                 if (worst < 0) {
                     worst = 0.0; /* beyond the history's columns: a text output */
-                    *at = (mk_error){.code = MK_NOT_CONVERGED, .component = ci, .call = -1,
+                    *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
                                      .point = n * c->ratio, .variable = c->n_out + i};
                 }
             }
@@ -1064,7 +1417,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         if (!done && !mine) { /* every process knows; those whose components did not settle say so */
             k->error = unsettled_at;
             k->error.integer = (uint64_t)s;
-            code = MK_NOT_CONVERGED;
+            code = MK_NOT_SETTLED;
         } else if (!done)
             code = barrier(k); /* settled here: the others fail, the supervisor stops this one */
     }
@@ -1072,8 +1425,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     /* resampled in order, a barrier after each: its sources' samples are already published */
     const bool due = row_due(k, n);
     for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
-        int32_t i = k->resample_order[r];
-        if (k->components[i].local && (due || k->components[i].resample_always)) code = resample(k, i, n);
+        code = resample_entry(k, r, n, due);
         if (code == MK_DONE) code = barrier(k);
     }
     for (int32_t i = 0; i < saved; i++) {
@@ -1116,6 +1468,9 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     if (c->n_out && (st = read_outputs(k, ci, c->hist, 0, 0)) != MK_DONE) return st;
     if (c->n_out_string + c->n_out_binary && (st = read_strings(k, ci, c->strings, 0, 0)) != MK_DONE) return st;
     *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
+    /* the sweep of a loop's last member: the loop solved at the start time */
+    for (int32_t l = 0; l < k->n_loops; l++)
+        if (k->loops[l].members[k->loops[l].n_members - 1] == ci && (st = solve_loop(k, l, -1)) != MK_DONE) return st;
     return MK_DONE;
 }
 
@@ -1233,10 +1588,8 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
             for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
                 if (k->components[i].local) code = macro_step(k, i, n, false);
             for (int32_t r = 0; code == MK_DONE && r < k->n_resample_order; r++) {
-                int32_t i = k->resample_order[r];
-                if (!k->components[i].local) continue;
-                if (due || k->components[i].resample_always) code = resample(k, i, n);
-                if (code == MK_DONE && k->shared) publish(&k->shared->published[i], n + 1);
+                code = resample_entry(k, r, n, due);
+                if (code == MK_DONE && k->shared) publish_entry(k, r, n);
             }
         }
         if (code == MK_DONE && due) code = mk_record_row(k, n);

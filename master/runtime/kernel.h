@@ -48,9 +48,11 @@ enum {
     MK_INEXACT = 8,    /* a 64-bit integer output in a history (a coupled one) is beyond 2^53 in
                           magnitude: a double cannot carry it exactly */
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
-    MK_NOT_CONVERGED = 10, /* iterated macro steps: a coupled signal still changed beyond the tolerance
-                              after the most sweeps allowed (mk_error: the component, its output
-                              with the largest change and that change, the sweeps in `integer`) */
+    MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
+                              the residual, the iterations) */
+    MK_NOT_SETTLED = 11,  /* iterated macro steps: a coupled signal still changed beyond the tolerance
+                             after the most sweeps allowed (mk_error: the component, its output with
+                             the largest change and that change, the sweeps in `integer`) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -167,6 +169,7 @@ typedef struct {
     void *instance;
     mk_function do_step, set_real, get_real, set_derivatives, get_integer, get_boolean, set_integer, set_boolean;
     mk_function get_state, set_state, free_state, get_boolean_status;
+    mk_function get_directional_derivative; /* algebraic loops solved with directional derivatives */
     mk_function get_typed[MK_KINDS]; /* FMI 3: fmi3Get<type> of kinds MK_FLOAT32 ... MK_UINT64 */
     mk_function set_typed[MK_KINDS]; /* FMI 3: fmi3Set<type> of the same kinds */
     /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
@@ -323,6 +326,56 @@ typedef struct {
     int64_t spin_ns; /* how long a waiter spins before it sleeps */
 } mk_shared;
 
+/* How an algebraic loop is solved (master.scenario.model.LOOP_METHODS, in that order), what one of
+ * its Jacobian entries is known to be (master.schedule.EDGE_*), and its counters (mk_loop.stats). */
+enum { MK_LOOP_NEWTON = 0, MK_LOOP_FIXED_POINT = 1 };
+enum { MK_EDGE_NONE = 0, MK_EDGE_DECLARED = 1, MK_EDGE_ASSUMED = 2 };
+enum {
+    MK_LOOP_SOLVES, MK_LOOP_ITERATIONS, MK_LOOP_EVALUATIONS, MK_LOOP_JACOBIANS, MK_LOOP_MOST, MK_LOOP_SEQUENTIAL,
+    MK_LOOP_STATS = 8
+};
+
+/* An algebraic loop (master.schedule.Loop): components whose outputs depend directly on their inputs
+ * around a cycle, all stepped by one process. Where samples are final (a macro step's end, the
+ * start time) it is solved for its unknowns x, the members' history columns that drive members'
+ * inputs: F(x) sets every member's linked inputs from the histories holding x and reads every
+ * member's outputs again (no step), until |F(x)_i - x_i| <= tolerance (1 + |F(x)_i|) for every i;
+ * the histories then hold F(x), read with inputs x. Newton on F(x) - x with the Jacobian of F from
+ * directional derivatives or finite differences, reused from point to point while the residual
+ * falls fast, or Anderson-accelerated fixed-point steps. Entries the FMU only assumed (no dependencies
+ * declared) that the first solve finds exactly zero are dropped; where that leaves no cycle among
+ * the members, every later solve evaluates them once each in `order` (exact, no iteration). */
+typedef struct {
+    int32_t n_members;
+    const int32_t *members; /* component indices */
+    int32_t n_unknowns;
+    const int32_t *unknown_member; /* [n]: index into members */
+    const int32_t *unknown_column; /* [n]: that member's history column */
+    const uint32_t *unknown_vr;    /* [n]: its value reference */
+    const uint8_t *structure;      /* [n][n]: MK_EDGE_* of d unknown i / d unknown j */
+    int32_t n_inputs;              /* the members' inputs that unknowns drive */
+    const int32_t *input_member;   /* [n_inputs]: index into members */
+    const uint32_t *input_vr;
+    const int32_t *input_unknown;
+    const double *input_factor; /* the connection's linear factor (1: none) */
+    int32_t method;
+    int32_t derivatives; /* 1: the Jacobian from directional derivatives (0 after one fails) */
+    double tolerance;
+    int32_t max_iterations;
+    /* written by the kernel: the probe's result, and work space */
+    int32_t probed, sequential, fresh;
+    int32_t *order;   /* [n_members] */
+    uint8_t *edges;   /* [n][n]: the structure after the probe */
+    uint8_t *reset;   /* [n_members]: set its inputs again after a sequential pass */
+    int32_t memory;   /* Anderson's: at most this many earlier steps (m) */
+    int32_t n_history;
+    double *work;     /* [7 n + 2 n n + 2 m n + m m]: x, fx, r, dx, previous r, previous x (or a perturbed
+                         x), F of it; Jacobian, LU; Anderson's differences of x and of r, his matrix */
+    int32_t *pivot;   /* [n] */
+    int64_t *stats;   /* [MK_LOOP_STATS], in shared memory */
+    double *worst;    /* the largest residual accepted (shared memory) */
+} mk_loop;
+
 typedef struct {
     int32_t n_components;
     mk_component *components; /* in stepping order */
@@ -350,11 +403,14 @@ typedef struct {
     mk_pacing *pacing;
     mk_error error;
     int32_t n_resample_order;
-    const int32_t *resample_order; /* resampling components, sources of input-dependent outputs first */
+    const int32_t *resample_order; /* resampling components, sources of input-dependent outputs first;
+                                      -1 - l: algebraic loop l, its members resampled together */
+    int32_t n_loops;
+    mk_loop *loops;
     /* Iterated macro steps (strong coupling): iterate > 0 repeats every macro step from the saved FMU
      * states, as the start-up sweeps do, until no coupled sample of it (n k + 1 .. (n + 1) k of
      * every column `coupled` marks, and every coupled String or Binary) changes by more than
-     * tolerance (1 + |sample|) between sweeps, in at most `iterate` sweeps (else MK_NOT_CONVERGED).
+     * tolerance (1 + |sample|) between sweeps, in at most `iterate` sweeps (else MK_NOT_SETTLED).
      * Its relaxed sweeps read a source that goes first from the current sweep (Gauss-Seidel
      * waveform iteration; start-up sweeps without it read every source's previous sweep). Several
      * processes agree through shared->unsettled, so every one does the same sweeps. */

@@ -17,7 +17,8 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from master.scenario.model import TRANSFORMATIONS
+from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
+from master.schedule import EDGE_ASSUMED
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
@@ -28,8 +29,20 @@ CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
-DONE, ROWS_FULL, YIELD, FMI_ERROR, NOT_FINITE, DIVERGED, ABORTED, STOPPED, INEXACT, TOO_LONG = range(10)
-NOT_CONVERGED = 10  # iterated macro steps: the sweeps did not settle (kernel.h)
+(
+    DONE,
+    ROWS_FULL,
+    YIELD,
+    FMI_ERROR,
+    NOT_FINITE,
+    DIVERGED,
+    ABORTED,
+    STOPPED,
+    INEXACT,
+    TOO_LONG,
+    NOT_CONVERGED,
+    NOT_SETTLED,  # iterated macro steps: the sweeps did not settle (kernel.h)
+) = range(12)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -73,7 +86,13 @@ CONSTANTS = {
     # a connection's transformation kinds (kernel.h mk_transform): their codes are their places in
     # the one table of them, master.scenario.model.TRANSFORMATIONS
     **{f"MK_TRANSFORM_{kind.upper()}": code for code, kind in enumerate(TRANSFORMATIONS)},
+    # how a loop is solved (kernel.h mk_loop): places in master.scenario.model.LOOP_METHODS
+    **{f"MK_LOOP_{m.upper().replace('-', '_')}": code for code, m in enumerate(LOOP_METHODS)},
+    "MK_EDGE_ASSUMED": EDGE_ASSUMED,
+    "MK_LOOP_STATS": 8,
 }
+# a loop's counters (kernel.h mk_loop.stats), in their order
+LOOP_STATS = ("solves", "iterations", "evaluations", "jacobians", "most", "sequential")
 
 _p = C.c_void_p
 _i32, _i64, _u32, _f64 = C.c_int32, C.c_int64, C.c_uint32, C.c_double
@@ -176,6 +195,7 @@ class Component(C.Structure):
         ("set_state", _p),
         ("free_state", _p),
         ("get_boolean_status", _p),
+        ("get_directional_derivative", _p),
         ("get_typed", _p * KINDS),
         ("set_typed", _p * KINDS),
         ("num0", _i64),
@@ -283,6 +303,39 @@ class Pacing(C.Structure):
     ]
 
 
+class Loop(C.Structure):
+    _fields_ = [
+        ("n_members", _i32),
+        ("members", C.POINTER(_i32)),
+        ("n_unknowns", _i32),
+        ("unknown_member", C.POINTER(_i32)),
+        ("unknown_column", C.POINTER(_i32)),
+        ("unknown_vr", C.POINTER(_u32)),
+        ("structure", C.POINTER(C.c_uint8)),
+        ("n_inputs", _i32),
+        ("input_member", C.POINTER(_i32)),
+        ("input_vr", C.POINTER(_u32)),
+        ("input_unknown", C.POINTER(_i32)),
+        ("input_factor", C.POINTER(_f64)),
+        ("method", _i32),
+        ("derivatives", _i32),
+        ("tolerance", _f64),
+        ("max_iterations", _i32),
+        ("probed", _i32),
+        ("sequential", _i32),
+        ("fresh", _i32),
+        ("order", C.POINTER(_i32)),
+        ("edges", C.POINTER(C.c_uint8)),
+        ("reset", C.POINTER(C.c_uint8)),
+        ("memory", _i32),
+        ("n_history", _i32),
+        ("work", C.POINTER(_f64)),
+        ("pivot", C.POINTER(_i32)),
+        ("stats", C.POINTER(_i64)),
+        ("worst", C.POINTER(_f64)),
+    ]
+
+
 class Kernel(C.Structure):
     _fields_ = [
         ("n_components", _i32),
@@ -312,6 +365,8 @@ class Kernel(C.Structure):
         ("error", Error),
         ("n_resample_order", _i32),
         ("resample_order", C.POINTER(_i32)),
+        ("n_loops", _i32),
+        ("loops", C.POINTER(Loop)),
         ("iterate", _i32),
         ("tolerance", _f64),
         ("coupled", C.POINTER(C.c_uint8)),
@@ -321,7 +376,7 @@ class Kernel(C.Structure):
     ]
 
 
-STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform)
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform, Loop)
 
 
 class KernelBuildError(RuntimeError):

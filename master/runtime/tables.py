@@ -27,8 +27,18 @@ from master.coupling import weights
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, lookup, recorded_as
-from master.scenario.model import TRANSFORMATIONS
-from master.schedule import KINDS, Clock, Link, Plan, PlanComponent, connection_name, value_kind
+from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
+from master.schedule import (
+    EDGE_ASSUMED,
+    KINDS,
+    Clock,
+    Link,
+    Loop,
+    Plan,
+    PlanComponent,
+    connection_name,
+    value_kind,
+)
 
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
@@ -55,7 +65,11 @@ FMI_FUNCTIONS = {
     "set_string": ("fmiSetString", "fmi2SetString", "fmi3SetString"),
     "get_binary": (None, None, "fmi3GetBinary"),  # Binary connections and records only
     "set_binary": (None, None, "fmi3SetBinary"),
+    "get_directional_derivative": (None, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative"),
 }
+
+
+ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
 
 
 class Cancelled(Exception):
@@ -170,6 +184,8 @@ def layout(
     out["iterations"] = ((8,), "int64")  # [0..3): sweeps, most in one macro step, macro steps iterated
     out["steps"] = ((nc, 8), "int64")  # [i, 0]: component i's; a cache line each (workers write them)
     out["fmu_time"] = ((nc, 8), "float64")
+    out["loops"] = ((max(len(plan.loops), 1), 8), "int64")  # per loop its counters (kernel.h mk_loop)
+    out["loop_worst"] = ((max(len(plan.loops), 1), 8), "float64")  # and its largest accepted residual
     return out
 
 
@@ -216,7 +232,13 @@ class CompiledPlan:
         k.record_every = plan.record_every
         self._iteration(k)
         k.n_resample_order = len(order)
-        k.resample_order = _ptr(self._array([self.names.index(n) for n in order], np.int32), C.c_int32)
+        entries = [self.names.index(n) if isinstance(n, str) else -1 - n for n in order]
+        k.resample_order = _ptr(self._array(entries, np.int32), C.c_int32)
+        loops = (native.Loop * max(len(plan.loops), 1))()
+        for i, lp in enumerate(plan.loops):
+            loops[i] = self._loop(i, lp, fmus)
+        k.n_loops, k.loops = len(plan.loops), loops
+        self._keep.append(loops)
         mc = plan.macro_clock
         self._check_clock("the macro clock", mc, plan.n_macro)
         k.macro_num0, k.macro_dnum, k.macro_den = mc.num0, mc.dnum, mc.den
@@ -420,6 +442,50 @@ class CompiledPlan:
         c.resample_texts = int(any(o in again for o in string_output_names(plan, pc.name)))
         width = max([len(in_names)] + [len(lk.inputs) for lk in links])
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
+
+    def _loop(self, index: int, lp: Loop, fmus: dict[str, Fmu]) -> native.Loop:
+        """An algebraic loop's tables (kernel.h mk_loop); where another process steps it, only its
+        members."""
+        L = native.Loop()
+        members = [self.names.index(m) for m in lp.members]
+        L.n_members = len(members)
+        L.members = _ptr(self._array(members, np.int32), C.c_int32)
+        L.stats = _ptr(self.memory["loops"][index], C.c_int64)
+        L.worst = _ptr(self.memory["loop_worst"][index], C.c_double)
+        if lp.members[0] not in fmus:
+            return L
+        n, settings = len(lp.unknowns), self.plan.scenario.loops
+        L.n_unknowns = n
+        L.unknown_member = self._ints([lp.members.index(m) for m, _ in lp.unknowns])
+        L.unknown_column = self._ints([self.outs[m].index(o) for m, o in lp.unknowns])
+        L.unknown_vr = _ptr(
+            self._array([variable(fmus[m], o).vr for m, o in lp.unknowns], np.uint32), C.c_uint32
+        )
+        L.structure = _ptr(self._array(lp.structure, np.uint8), C.c_uint8)
+        L.n_inputs = len(lp.inputs)
+        L.input_member = self._ints([lp.members.index(m) for m, _, _, _ in lp.inputs])
+        L.input_vr = _ptr(
+            self._array([variable(fmus[m], i).vr for m, i, _, _ in lp.inputs], np.uint32), C.c_uint32
+        )
+        L.input_unknown = self._ints([u for _, _, u, _ in lp.inputs])
+        L.input_factor = _ptr(self._array([f for _, _, _, f in lp.inputs], np.float64), C.c_double)
+        L.method = LOOP_METHODS.index(settings.method)
+        L.derivatives = int(lp.derivatives and settings.directional_derivatives)
+        L.tolerance, L.max_iterations = settings.tolerance, settings.max_iterations
+        L.order = self._ints(np.zeros(len(members)))
+        L.edges = _ptr(self._array(np.zeros(n * n), np.uint8), C.c_uint8)
+        L.reset = _ptr(self._array(np.zeros(len(members)), np.uint8), C.c_uint8)
+        L.memory = m = min(n, ANDERSON_MEMORY)
+        L.work = _ptr(self._array(np.zeros(7 * n + 2 * n * n + 2 * m * n + m * m), np.float64), C.c_double)
+        L.pivot = self._ints(np.zeros(n))
+        L.probed = int(not any(EDGE_ASSUMED in row for row in lp.structure))
+        return L
+
+    def _ints(self, values):
+        return _ptr(self._array(values, np.int32), C.c_int32)
+
+    def _vrs(self, values):
+        return _ptr(self._array(values, np.uint32), C.c_uint32)
 
     def _calls(self, fmu: Fmu, names: list[str], kinds: list[str | None]):
         """(n_calls, calls) of kernel.h's mk_call: the inputs or history columns `names` (of
@@ -647,6 +713,16 @@ class CompiledPlan:
         name, fmu, pc = self.names[e.component], self.fmus[e.component], self.plan.components[e.component]
         t, t1 = pc.clock.time(e.point), pc.clock.time(e.point + 1)
         if e.code == native.NOT_CONVERGED:
+            lp, settings = self.plan.loops[e.variable], self.plan.scenario.loops
+            return SimulationError(
+                f"algebraic loop {lp.cycle} not solved at t={t}: the largest change of its signals is "
+                f"{e.value:.3g} (relative to 1 + |value|) after {int(e.integer)} iterations of "
+                f"{settings.method}; tolerance {settings.tolerance:g}, at most {settings.max_iterations} "
+                "iterations (mm:Loops)",
+                name,
+                t,
+            )
+        if e.code == native.NOT_SETTLED:
             outs = self.outs[name] + string_output_names(self.plan, name)
             it = self.plan.iteration
             end = pc.clock.time(e.point + pc.ratio)
@@ -855,7 +931,7 @@ def outputs_read(plan: Plan, history: list[str], name: str) -> list[str]:
     return list(dict.fromkeys(history + string_output_names(plan, name) + recorded))
 
 
-def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[str]], list[str]]:
+def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[str]], list[str | int]]:
     """Which components resample after a macro step (kernel.h: resample), each with the variables
     it reads that depend on its linked inputs, and their order (a source of such outputs before their
     consumers). One rule for every type and whatever is recorded: a component driven by a link
@@ -864,7 +940,8 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
     the source's sample at the row's time, as every peer master records it). Its step-end inputs
     were extrapolated (a link that is not ahead) or held from the macro step's start, a source's
     sample before that source was resampled, or, in start-up sweeps, the previous sweep's; where
-    they were final already, reading again changes nothing."""
+    they were final already, reading again changes nothing. An algebraic loop (Plan.loops) is one
+    entry of the order, its index (its members solved together), a component's is its name."""
     from master.fmu import feedthrough_outputs, read_description, variables_of
 
     through: dict[str, list[str]] = {}
@@ -879,23 +956,28 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
         if chosen:
             through[pc.name] = chosen
 
-    again = through
-    order: list[str] = []
-    waiting = dict.fromkeys(again)
-    while waiting:  # Kahn: a component after every resampled source whose resampled outputs it reads
+    for lp in plan.loops:  # a loop's members read its unknowns again at every solve
+        for m in lp.members:
+            through[m] = list(dict.fromkeys(through.get(m, []) + [o for c, o in lp.unknowns if c == m]))
+    node = {m: i for i, lp in enumerate(plan.loops) for m in lp.members}  # a loop resamples as one
+    order: list[str | int] = []
+    waiting = dict.fromkeys(node.get(n, n) for n in through)
+    while waiting:  # Kahn: an entry after every resampled source outside it whose resampled outputs it reads
         ready = [
-            n for n in waiting
-            if not any(lk.source in waiting and lk.source != n and set(lk.outputs) & set(again[lk.source])
-                       for lk in plan.links_into(n))
+            e for e in waiting
+            if not any(node.get(lk.source, lk.source) in waiting and node.get(lk.source, lk.source) != e
+                       and set(lk.outputs) & set(through[lk.source])
+                       for n in through if node.get(n, n) == e for lk in plan.links_into(n))
         ]  # fmt: skip
-        if not ready:  # an algebraic loop (the scenario layer refuses these): left as it was
-            for n in waiting:
-                again.pop(n)
+        if not ready:  # a cycle through outputs that depend on inputs no link drives: left as it was
+            for e in waiting:
+                for n in [n for n in through if node.get(n, n) == e]:
+                    through.pop(n)
             break
-        for n in ready:
-            order.append(n)
-            waiting.pop(n)
-    return again, order
+        for e in ready:
+            order.append(e)
+            waiting.pop(e)
+    return through, order
 
 
 def estimate_rows(plan: Plan, lk: Link) -> slice:
@@ -906,6 +988,19 @@ def estimate_rows(plan: Plan, lk: Link) -> slice:
             return slice(start, start + len(lk.inputs))
         start += len(other.inputs)
     raise KeyError(lk)
+
+
+def loop_stats(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
+    """Per algebraic loop (by its cycle): its counters (native.LOOP_STATS: solves, iterations,
+    evaluations of its members, Jacobians, the most iterations at one point, 1 if the first solve
+    found no cycle) and "worst", the largest relative residual it accepted."""
+    return {
+        lp.cycle: {
+            **{name: int(memory["loops"][i, n]) for n, name in enumerate(native.LOOP_STATS)},
+            "worst": float(memory["loop_worst"][i, 0]),
+        }
+        for i, lp in enumerate(plan.loops)
+    }
 
 
 def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:

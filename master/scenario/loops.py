@@ -3,7 +3,9 @@
 Nodes are ports "component.variable".  Edges: each connection (output -> input, no delay
 in the master) and, inside an FMU, each input -> output it feeds through directly
 (ModelStructure/Outputs dependencies; no dependencies attribute means all inputs).
-A strongly connected component with more than one port holds a loop.
+A strongly connected component with more than one port holds a loop. The runtime solves loops of
+continuous signals at communication points (master.schedule.Loop); a loop through a discrete or
+text connection is a problem.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 from lxml import etree
 
 from .context import Context
+from .fmuinfo import CONTINUOUS, coupling_kind
 
 Port = tuple[str, str]
 
@@ -99,19 +102,27 @@ def cycle_in(scc: list[Port], edges: dict[Port, list[Port]]) -> list[Port]:
 
 
 def check(ctx: Context, connections: list[tuple[tuple[str, str, str, str], etree._Element]]) -> None:
-    """One problem per algebraic loop, at the first connection on it."""
+    """One problem per algebraic loop the runtime cannot solve (one through a connection that does
+    not carry a Real or Float32 signal), at that connection."""
     edges = graph(ctx, connections)
     elems = {(key[0], key[1], key[2], key[3]): elem for key, elem in connections}
     for scc in strongly_connected(edges):
         if len(scc) < 2:
             continue
-        cycle = cycle_in(scc, edges)
-        hops = list(zip(cycle, cycle[1:], strict=False))
-        links = [elems[(a[0], a[1], b[0], b[1])] for a, b in hops if (a[0], a[1], b[0], b[1]) in elems]
-        where = min(links, key=lambda e: e.sourceline or 0)
-        path = " -> ".join(f"{c}.{v}" for c, v in cycle)
-        ctx.at(
-            where,
-            f"algebraic loop through direct feedthrough: {path}; break it with a component"
-            " whose output does not depend directly on its inputs",
-        )
+        members = set(scc)
+        for (se, sc, ee, ec), elem in sorted(elems.items(), key=lambda e: e[1].sourceline or 0):
+            if (se, sc) not in members or (ee, ec) not in members:
+                continue
+            info = ctx.comps[se].info if se in ctx.comps else None
+            var = info.variables.get(sc) if info is not None else None
+            kind = coupling_kind(var.type, info.fmi_version) if var is not None else None
+            if kind is None or kind in CONTINUOUS:
+                continue
+            path = " -> ".join(f"{c}.{v}" for c, v in cycle_in(scc, edges))
+            ctx.at(
+                elem,
+                f"algebraic loop through direct feedthrough: {path}; this connection carries {kind} values "
+                "and the master solves loops of Real and Float32 signals only: break it with a "
+                "component whose output does not depend directly on its inputs",
+            )
+            break

@@ -84,11 +84,12 @@ class LoopSolver:
     outputs read; no step) until every one changes by at most tolerance * (1 + |value|), at most
     `max_iterations` times. "newton": Newton's method with the Jacobian from directional derivatives
     (finite differences where a member provides none), reused while it converges well; "fixed-point":
-    Aitken-accelerated fixed-point iteration."""
+    Anderson-accelerated fixed-point iteration (no Jacobian)."""
 
     method: Literal["newton", "fixed-point"] = "newton"
     tolerance: float = 1e-10
     max_iterations: int = 100
+    directional_derivatives: bool = True  # False: finite differences even where FMUs provide them
 
 
 @dataclass(frozen=True)

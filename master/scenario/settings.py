@@ -160,6 +160,7 @@ def _coupling_iterations(ctx: Context, elem: etree._Element, s: Settings) -> Non
             method=loops.get("method", default.method),
             tolerance=_tolerance(loops, default.tolerance),
             max_iterations=_iterations(ctx, loops, default.max_iterations),
+            directional_derivatives=_bool(loops.get("directionalDerivatives", "true")) is not False,
         )
     iteration = elem.find(tag(NS_MM, "Iteration"))
     if iteration is not None:

@@ -26,7 +26,7 @@ from lxml import etree
 
 from . import fmuinfo
 from .archive import SSD_NAME
-from .model import Scenario, Value
+from .model import Scenario, Scheme, Value
 from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV
 from .systems import component_element
 from .values import BadValue, from_string
@@ -93,7 +93,7 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
     note.tail = settings.getparent().text
     settings.set("macroStep", decimal(new.macro_step))
     settings.set("coupling", new.coupling)
-    if new.coupling == "gauss-seidel" and new.order:
+    if new.coupling == Scheme.GAUSS_SEIDEL and new.order:
         settings.set("order", " ".join(new.order))
     elif "order" in settings.attrib:
         del settings.attrib["order"]
