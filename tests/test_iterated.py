@@ -325,3 +325,26 @@ def test_master_validate_names_at_mm_iteration_an_fmu_that_cannot_save_its_state
         "iterated.ssd:" in problems[0] and "mm:Iteration" in problems[0] and "component mass2" in problems[0]
     )
     assert "msd1.fmu cannot save its state (canGetAndSetFMUstate false)" in problems[0]
+
+
+def test_a_plan_built_past_the_checks_still_never_steps_an_fmu_without_state():
+    """build_plan keeps no rule of its own; the kernel's tables refuse the FMU before any call."""
+    from master.backends.in_process import InProcessBackend
+    from master.fmu import FmuError, read_description, variables_of
+    from master.fmubuild import fmu_path
+    from master.schedule import build_plan
+
+    sc = _chain(Scheme.JACOBI)
+    old = sc.components[1]
+    fmi1 = Component(old.name, fmu_path("msd", fmi=1), {}, old.step_ratio, old.extrapolation_order)
+    sc = dataclasses.replace(sc, components=(sc.components[0], fmi1, sc.components[2]))
+    backend = InProcessBackend(
+        build_plan(sc, {c.name: variables_of(read_description(c.fmu_path)) for c in sc.components})
+    )
+    try:
+        with pytest.raises(
+            FmuError, match="mass2: msd.fmu cannot save its state: iterated macro steps need it"
+        ):
+            backend.open()
+    finally:
+        backend.close()

@@ -72,6 +72,9 @@ FMI_FUNCTIONS = {
 ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
 
 
+STATE_FUNCTIONS = ("get_state", "set_state", "free_state")  # what repeating a macro step calls
+
+
 class Cancelled(Exception):
     """Another worker failed or the supervisor stopped the run: this worker has nothing to report."""
 
@@ -276,6 +279,9 @@ class CompiledPlan:
         """Iterated macro steps (kernel.h: mk_kernel.iterate): the sweeps allowed, the tolerance, the
         history columns whose settling ends the sweeps (those a link reads) and the counts."""
         it = self.plan.iteration
+        for name, fmu in zip(self.names, self.fmus, strict=True):  # the scenario layer has said so already
+            if it is not None and fmu is not None and any(_function(fmu, f) is None for f in STATE_FUNCTIONS):
+                raise FmuError(f"{name}: {fmu.path.name} cannot save its state: iterated macro steps need it")
         k.iterate = it.max_iterations if it is not None else 0
         k.tolerance = it.tolerance if it is not None else 0.0
         read = {(lk.source, o) for lk in self.plan.links for o in lk.outputs}
