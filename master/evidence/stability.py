@@ -92,8 +92,8 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
     ratio, its inputs held or as polynomials (an FMU that interpolates its inputs: one doStep per
     macro step), its solver (parameter "solver") and its solver steps per communication step
     (parameter "internal_step"; 0: one); a Model Exchange component its `solver` and `internalStep`,
-    its inputs as polynomials. order: the extrapolation order (default: the largest
-    of the scene's components).
+    its inputs as polynomials; iterated macro steps as their converged fixed point. order: the
+    extrapolation order (default: the largest of the scene's components).
     """
     from master.api import plan as make_plan
 
@@ -132,7 +132,8 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
         first = tuple(scenario.order) if scenario.coupling == "gauss-seidel" else ()
         if scenario.coupling == "gauss-seidel" and not first:
             first = tuple(c.name for c in scenario.components)
-        return LinearScheme(tuple(comps), conns, order=k, first=first)
+        iterate = "converged" if scenario.iteration is not None else 0  # the runtime's iterated steps
+        return LinearScheme(tuple(comps), conns, order=k, first=first, iterate=iterate)
     finally:
         scene.close()
 

@@ -190,6 +190,15 @@ def no_element(variables: Mapping[str, Any], name: str) -> str | None:
     return f"{split[0]} is {typed(v.type, v.shape)}: it has no element {name}"
 
 
+def iteration_problem(info: FmuInfo) -> str | None:
+    """Why iterated macro steps cannot run this FMU (they repeat each macro step from its saved
+    state); None if they can."""
+    if info.can_get_set_state:
+        return None
+    return (f"iterated macro steps (mm:Iteration) repeat each macro step from saved FMU states, but "
+            f"{info.path.name} cannot save its state (canGetAndSetFMUstate false)")  # fmt: skip
+
+
 def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[int, ...] = ()) -> str | None:
     """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type (and shape:
     () for a scalar); None if it can. Numeric, Boolean and Enumeration scalar inputs take steps;
@@ -344,6 +353,7 @@ class FmuInfo:
     feedthrough: dict[str, frozenset[str]]  # output name -> inputs it depends on directly
     co_simulation: bool
     can_interpolate_inputs: bool
+    can_get_set_state: bool = False  # canGetAndSetFMUstate (FMI 3: canGetAndSetFMUState)
     # structural parameters that give an array its size -> the arrays they size
     sizes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     # why the master cannot run this FMU (master.fmu.unsupported: FMI version, interface); None if it can
@@ -484,6 +494,7 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
         feedthrough=feedthrough,
         co_simulation=cs is not None,
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
+        can_get_set_state=bool(cs is not None and cs.canGetAndSetFMUstate),
         sizes={k: tuple(v) for k, v in sizes.items()},
         unsupported=unsupported(md, path),
         defects=defects(path),

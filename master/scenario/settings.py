@@ -20,6 +20,7 @@ from .context import Context
 from .fmuinfo import (
     FLOATS,
     FmuInfo,
+    iteration_problem,
     point_problem,
     record_problem,
     stimulus_problem,
@@ -165,6 +166,7 @@ def read(
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     _coupling_iterations(ctx, elem, s)
+    _saved_states(ctx, elem, s)
     return s
 
 
@@ -186,6 +188,17 @@ def _coupling_iterations(ctx: Context, elem: etree._Element, s: Settings) -> Non
             tolerance=_tolerance(iteration, default.tolerance),
             max_iterations=_iterations(ctx, iteration, default.max_iterations),
         )
+
+
+def _saved_states(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    """Iterated macro steps: every FMU saves its state (the problem at mm:Iteration, per component)."""
+    if s.iteration is None:
+        return
+    where = elem.find(tag(NS_MM, "Iteration"))
+    for name, comp in ctx.comps.items():
+        problem = iteration_problem(comp.info) if comp.info is not None else None
+        if problem:
+            ctx.at(where, f"component {name}: {problem}")
 
 
 def _tolerance(elem: etree._Element, default: float) -> float:
