@@ -47,7 +47,7 @@ from master.evidence import bench
 from master.evidence.bench import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, Config, Profile
 from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
-from master.scenario.model import Scenario
+from master.scenario.model import Scenario, Scheme
 from master.scenario.names import split
 
 MANTISSAS = (
@@ -144,8 +144,8 @@ def families(p: Profile) -> list[tuple[str, Config]]:
     b = p.base
     if p.generic:
         plain = [(f"order {k}, {c}", dataclasses.replace(b, order=k, coupling=c, iterated=False))
-                 for c in ("jacobi", "gauss-seidel") for k in range(4)]  # fmt: skip
-        swept = dataclasses.replace(b, coupling="gauss-seidel", iterated=True)
+                 for c in Scheme for k in range(4)]  # fmt: skip
+        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
         iterated = [
             (f"order {k}, gauss-seidel, iterated", dataclasses.replace(swept, order=k)) for k in range(4)
         ]
@@ -165,7 +165,7 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
     the mechanics solver."""
     out = []
     if not c.control_first:
-        flip = "gauss-seidel" if (c.coupling or "jacobi") == "jacobi" else "jacobi"
+        flip = Scheme.GAUSS_SEIDEL if (c.coupling or Scheme.JACOBI) == Scheme.JACOBI else Scheme.JACOBI
         out.append(dataclasses.replace(c, coupling=flip))
         out += [dataclasses.replace(c, control_first=True, mech_order=2, mech_substeps=m) for m in (1, 2, 4)]
     else:

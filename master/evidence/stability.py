@@ -20,7 +20,8 @@ from scipy.integrate import solve_ivp
 from master.evidence.linear import LinearComponent, LinearScheme
 from master.evidence.reference import _DOUBLE_P, _Scene, break_points
 from master.recorder import signal_columns
-from master.scenario.model import SOLVERS, Scenario
+from master.scenario.model import SOLVERS, Scenario, Scheme
+from master.schedule import stepping_order
 
 
 def state_at(scene: _Scene, scenario: Scenario, t: float, rtol: float = 1e-8) -> np.ndarray:
@@ -129,9 +130,7 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
-        first = tuple(scenario.order) if scenario.coupling == "gauss-seidel" else ()
-        if scenario.coupling == "gauss-seidel" and not first:
-            first = tuple(c.name for c in scenario.components)
+        first = tuple(stepping_order(scenario)) if scenario.coupling == Scheme.GAUSS_SEIDEL else ()
         iterate = "converged" if scenario.iteration is not None else 0  # the runtime's iterated steps
         return LinearScheme(tuple(comps), conns, order=k, first=first, iterate=iterate)
     finally:
