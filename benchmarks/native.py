@@ -95,7 +95,7 @@ def harness_schedule(sc: Scenario, work: Path) -> Path:
         feedthrough = int(bool(inputs) and bool(feedthrough_outputs(md) & set(outs[pc.name])))
         out_vrs = " ".join(str(var[o].vr) for o in outs[pc.name])
         lines.append(
-            f"component {lib} {md.guid} {(folder / 'resources').as_uri()} {pc.name} {pc.ratio} "
+            f"component {lib} {md.guid} {(folder / 'resources').as_uri()} {pc.name} {pc.step_ratio} "
             f"{float(pc.step)!r} {feedthrough} {len(params)} {len(inputs)} {len(outs[pc.name])}"
         )
         lines += params + inputs + [f"{out_vrs} {reads}"]

@@ -169,7 +169,7 @@ class Loop:
 @dataclass(frozen=True)
 class PlanComponent:
     name: str
-    ratio: int  # effective k: communication steps per macro step
+    step_ratio: int  # effective k: steps per macro step (the scene's stepRatio, 1 if it interpolates)
     step: Fraction  # its communication step (s)
     clock: Clock
     interpolate_inputs: bool  # one step per macro step, inputs handed over as polynomials
@@ -259,7 +259,7 @@ class Plan:
                     f", Model Exchange integrated by the master with {me.solver} ({substep} per "
                     "communication step), inputs as polynomials at every stage time"
                 )
-            lines.append(f"  {c.name}: k = {c.ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
+            lines.append(f"  {c.name}: k = {c.step_ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
         for lk in self.links:
             how = "interpolated" if lk.source_first else "extrapolated"
             how = how if lk.kind in CONTINUOUS else f"held ({lk.kind})"
@@ -415,8 +415,8 @@ def _links(
             tuple(p[1] for p in pairs),
             order_,
             sc.coupling == Scheme.GAUSS_SEIDEL and rank[src] < rank[dst],
-            comps[src].ratio,
-            comps[dst].ratio,
+            comps[src].step_ratio,
+            comps[dst].step_ratio,
             kind,
             tuple(p[2] for p in pairs) if any(p[2] for p in pairs) else (),
         )

@@ -91,7 +91,7 @@ def test_outputs_are_read_where_a_consumer_or_the_recorder_uses_them():
 def test_reading_fewer_outputs_changes_no_result(monkeypatch):
     sc = oscillator(Fraction(1, 20), 0, ratios=(5, 1), interpolate=(False, False), stop=Fraction(2))
     fewer = api.run(sc)
-    monkeypatch.setattr(tables, "samples_read", lambda plan, name: [True] * plan.component(name).ratio)
+    monkeypatch.setattr(tables, "samples_read", lambda plan, name: [True] * plan.component(name).step_ratio)
     every = api.run(sc)
     assert fewer.summary.steps == every.summary.steps
     for name in fewer.data.dtype.names:

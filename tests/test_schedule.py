@@ -121,9 +121,9 @@ def test_interpolate_inputs_steps_once_per_macro_step_only_if_the_fmu_can():
         Component("b", Path("b.fmu")),
     )
     plan = build_plan(scene(components=comps), VARS, {"a": Capability(True)})
-    assert plan.component("a").ratio == 1 and plan.component("a").interpolate_inputs
+    assert plan.component("a").step_ratio == 1 and plan.component("a").interpolate_inputs
     plan = build_plan(scene(components=comps), VARS, {"a": Capability(False)})
-    assert plan.component("a").ratio == 4
+    assert plan.component("a").step_ratio == 4
     assert any("cannot interpolate inputs" in n for n in plan.notes)
 
 

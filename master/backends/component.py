@@ -41,7 +41,7 @@ def history_capacity(plan: Plan, name: str) -> int:
     """
     pc = plan.component(name)
     p = max((lk.order for lk in plan.links if name in (lk.source, lk.consumer)), default=0)
-    return pc.ratio + p + 2
+    return pc.step_ratio + p + 2
 
 
 def output_names(plan: Plan, name: str, variables: dict) -> list[str]:
@@ -88,7 +88,7 @@ def samples_read(plan: Plan, name: str) -> list[bool]:
     checked for divergence) only where used: a source stepping k times per macro step for an
     order-0 consumer is read once, not k times.
     """
-    k = plan.component(name).ratio
+    k = plan.component(name).step_ratio
     used = {0}
     for lk in plan.links:
         if lk.source != name:

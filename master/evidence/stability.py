@@ -125,7 +125,7 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
                 me = pc.model_exchange
                 solver, substeps, mode = SOLVERS.index(me.solver) + 1, me.substeps(pc.step) or 1, "polynomial"
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
-                                         step_ratio=pc.ratio, substeps=substeps, order=k_in,
+                                         step_ratio=pc.step_ratio, substeps=substeps, order=k_in,
                                          input_mode=mode))  # fmt: skip
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip

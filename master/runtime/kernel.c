@@ -673,7 +673,7 @@ static void transform_values(const mk_link *lk, double *v) {
  * derivative blocks scaled by a linear transformation's factor (its offset is constant). */
 static void transform_inputs(const mk_component *c, const mk_link *lk) {
     const int32_t nb = c->n_blocks;
-    for (int32_t m = 0; m < c->ratio; m++)
+    for (int32_t m = 0; m < c->step_ratio; m++)
         for (int32_t b = 0; b < nb; b++) {
             double *v = c->u + ((size_t)m * nb + b) * c->n_in + lk->slot0;
             if (b < c->n_values) transform_values(lk, v);
@@ -710,7 +710,7 @@ static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t
 /* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
  * then the stimuli. */
 static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
-    const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
+    const int32_t kc = c->step_ratio, nb = c->n_blocks, n_in = c->n_in;
     for (int32_t l = 0; l < c->n_links; l++) {
         const mk_link *lk = &c->links[l];
         const mk_component *src = &k->components[lk->source];
@@ -970,7 +970,7 @@ static void me_history(mk_component *c, bool save) {
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
-    const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
+    const int32_t kc = c->step_ratio, nb = c->n_blocks, n_in = c->n_in;
     const bool final = !repeated(k, n);
     int64_t j = n * kc;
     for (int32_t m = 0; m < kc; m++, j++) {
@@ -1017,7 +1017,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
  * start time): the final samples of every numeric and text link. */
 static int32_t set_linked(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
-    const int64_t j = (n + 1) * c->ratio, t0 = now_ns();
+    const int64_t j = (n + 1) * c->step_ratio, t0 = now_ns();
     int st = STATUS_OK;
     int32_t call = MK_CALL_SET_REAL;
     for (int32_t l = 0; st <= STATUS_OK && l < c->n_links; l++) {
@@ -1051,7 +1051,7 @@ static int32_t set_linked(mk_kernel *k, int32_t ci, int64_t n) {
  * (n = -1: the start time): its history row and its text outputs. */
 static int32_t read_linked(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
-    const int64_t j = (n + 1) * c->ratio, t0 = now_ns();
+    const int64_t j = (n + 1) * c->step_ratio, t0 = now_ns();
     double *row = c->hist + (j % c->cap) * c->n_out;
     int32_t code = MK_DONE;
     if (c->resample_outputs) code = read_outputs(k, ci, row, j > 0 ? j - 1 : 0, j);
@@ -1102,7 +1102,7 @@ static int32_t resample(mk_kernel *k, int32_t ci, int64_t n) {
 /* Unknown i of loop L in its member's sample at the end of macro step n. */
 static double *unknown_at(const mk_kernel *k, const mk_loop *L, int32_t i, int64_t n) {
     const mk_component *c = &k->components[L->members[L->unknown_member[i]]];
-    return c->hist + (((n + 1) * c->ratio) % c->cap) * c->n_out + L->unknown_column[i];
+    return c->hist + (((n + 1) * c->step_ratio) % c->cap) * c->n_out + L->unknown_column[i];
 }
 
 /* fx = F(x): x into the histories, every member's linked inputs set from them, then every member's
@@ -1320,7 +1320,7 @@ static int32_t solve_loop(mk_kernel *k, int32_t l, int64_t n) {
         if (it + 1 >= L->max_iterations) {
             const mk_component *c = &k->components[L->members[0]];
             L->stats[MK_LOOP_ITERATIONS] += it + 1;
-            fail(k, MK_NOT_CONVERGED, L->members[0], -1, 0, (n + 1) * c->ratio);
+            fail(k, MK_NOT_CONVERGED, L->members[0], -1, 0, (n + 1) * c->step_ratio);
             k->error.variable = l;
             k->error.value = residual;
             k->error.integer = (uint64_t)(it + 1);
@@ -1416,7 +1416,7 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
         const mk_component *c = &k->components[ci];
         if (!c->local) continue;
         const int32_t nt = c->n_out_string + c->n_out_binary;
-        for (int64_t j = n * c->ratio + 1; j <= (n + 1) * c->ratio; j++) {
+        for (int64_t j = n * c->step_ratio + 1; j <= (n + 1) * c->step_ratio; j++) {
             const double *now = c->hist + (j % c->cap) * c->n_out;
             const double *before = c->hist_previous + (j % c->cap) * c->n_out;
             for (int32_t o = 0; o < c->n_out; o++) {
@@ -1427,7 +1427,7 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
                 if (d / scale > worst) {
                     worst = d / scale;
                     *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
-                                     .point = n * c->ratio, .variable = o, .value = d};
+                                     .point = n * c->step_ratio, .variable = o, .value = d};
                 }
             }
             for (int32_t i = 0; i < nt; i++) { /* a String or Binary: settled when its bytes stay */
@@ -1437,7 +1437,7 @@ static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
                 if (worst < 0) {
                     worst = 0.0; /* beyond the history's columns: a text output */
                     *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
-                                     .point = n * c->ratio, .variable = c->n_out + i};
+                                     .point = n * c->step_ratio, .variable = c->n_out + i};
                 }
             }
         }
@@ -1472,7 +1472,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         me_history(c, true);
         mark_idle(k);
         if (st > STATUS_OK) {
-            code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->ratio);
+            code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->step_ratio);
             break;
         }
     }
@@ -1501,7 +1501,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
             int st = ((fmi_set_state *)c->set_state)(c->instance, c->saved_state);
             me_history(c, false);
             mark_idle(k);
-            if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
+            if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->step_ratio);
             else code = macro_step(k, i, n, true);
         }
         if (code == MK_DONE && k->iterate) {
@@ -1536,7 +1536,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         int st = ((fmi_free_state *)c->free_state)(c->instance, &c->saved_state);
         mark_idle(k);
         c->saved_state = NULL;
-        if (st > STATUS_OK && code == MK_DONE) code = fail(k, MK_FMI_ERROR, i, MK_CALL_FREE_STATE, st, n * c->ratio);
+        if (st > STATUS_OK && code == MK_DONE) code = fail(k, MK_FMI_ERROR, i, MK_CALL_FREE_STATE, st, n * c->step_ratio);
     }
     return code;
 }
@@ -1602,7 +1602,7 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         const mk_record *rec = &k->records[r];
         mk_component *c = &k->components[rec->component];
         if (rec->kind == MK_REAL_SAMPLE) {
-            store(row + rec->column, rec->store, c->hist[(((n + 1) * c->ratio) % c->cap) * c->n_out + rec->index]);
+            store(row + rec->column, rec->store, c->hist[(((n + 1) * c->step_ratio) % c->cap) * c->n_out + rec->index]);
             continue;
         }
         if (rec->kind == MK_COUPLING_ERROR) {
@@ -1624,7 +1624,7 @@ int32_t mk_record_row(mk_kernel *k, int64_t n) {
         mark_idle(k);
         *c->fmu_time += 1e-9 * (double)(now_ns() - t0);
         if (st > STATUS_OK || st < 0) {
-            fail(k, st < 0 ? MK_TOO_LONG : MK_FMI_ERROR, rec->component, call, st < 0 ? 0 : st, (n + 1) * c->ratio);
+            fail(k, st < 0 ? MK_TOO_LONG : MK_FMI_ERROR, rec->component, call, st < 0 ? 0 : st, (n + 1) * c->step_ratio);
             k->error.variable = r;
             k->error.integer = length;
             return k->error.code;

@@ -177,10 +177,10 @@ typedef struct {
     mk_function get_directional_derivative; /* algebraic loops solved with directional derivatives */
     mk_function get_typed[MK_KINDS]; /* FMI 3: fmi3Get<type> of kinds MK_FLOAT32 ... MK_UINT64 */
     mk_function set_typed[MK_KINDS]; /* FMI 3: fmi3Set<type> of the same kinds */
-    /* clock: communication point j is (num0 + j dnum) / den; k = ratio steps of h per macro step */
+    /* clock: communication point j is (num0 + j dnum) / den; step_ratio steps of h per macro step (the scenario's stepRatio k) */
     int64_t num0, dnum, den;
     double h;
-    int32_t ratio;
+    int32_t step_ratio;
     /* inputs: u[m][block][i], blocks = n_values values (step start, step end) then derivatives;
      * the first n_in_real are Real (FMI 3 Float64), the next n_in_integer Integer (Int32, FMI 2
      * Enumeration), then Boolean ones, and the last n_in_typed of the FMI 3 kinds in_kinds[i]
@@ -252,7 +252,7 @@ typedef struct {
     const uint32_t *in_string_vrs;
     int32_t n_string_links;
     const mk_link *string_links;
-    char *string_u; /* [ratio][n_in_string + n_in_binary][MK_STRING_SLOT] */
+    char *string_u; /* [step_ratio][n_in_string + n_in_binary][MK_STRING_SLOT] */
     /* written by the kernel */
     void *saved_state;
     /* counted as they happen, in shared memory: a worker that dies or hangs leaves its counts */

@@ -218,7 +218,7 @@ class Component(C.Structure):
         ("dnum", _i64),
         ("den", _i64),
         ("h", _f64),
-        ("ratio", _i32),
+        ("step_ratio", _i32),
         ("n_in", _i32),
         ("n_in_real", _i32),
         ("n_in_integer", _i32),

@@ -321,10 +321,10 @@ class CompiledPlan:
         consumers here read: its clock and its history."""
         plan = self.plan
         c = native.Component()
-        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
+        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.step_ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
-        c.ratio = pc.ratio
+        c.step_ratio = pc.step_ratio
         i = self.names.index(pc.name)
         c.steps = _ptr(self.memory["steps"][i], C.c_int64)
         c.fmu_time = _ptr(self.memory["fmu_time"][i], C.c_double)
@@ -360,10 +360,10 @@ class CompiledPlan:
             _require(fmu, slot, pc.name)
         for slot in ("set_real", "get_real"):
             _require(fmu, slot, pc.name)
-        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
+        self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.step_ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
         c.h = float(pc.step)
-        c.ratio = k = pc.ratio
+        c.step_ratio = k = pc.step_ratio
 
         # inputs by kind (schedule.KINDS: Real, Integer, Boolean, then the FMI 3 kinds of their own
         # calls), of each kind the links' then the stimuli's: kernel.h
@@ -625,7 +625,7 @@ class CompiledPlan:
         c.n_in_binary = len(binary_in)
         c.n_in_string = len(inputs) - len(binary_in)
         c.in_string_vrs = _ptr(self._array([fmu.variables[i].vr for i in inputs], np.uint32), C.c_uint32)
-        buffer = np.zeros((pc.ratio, max(len(inputs), 1), native.STRING_SLOT), np.uint8)
+        buffer = np.zeros((pc.step_ratio, max(len(inputs), 1), native.STRING_SLOT), np.uint8)
         c.string_u = _ptr(self._array(buffer, np.uint8), C.c_char)
         c_links = (native.Link * max(len(links), 1))()
         for i, lk in enumerate(links):  # held: one term of weight 1
@@ -779,7 +779,7 @@ class CompiledPlan:
         if e.code == native.NOT_SETTLED:
             outs = self.outs[name] + string_output_names(self.plan, name)
             it = self.plan.iteration
-            end = pc.clock.time(e.point + pc.ratio)
+            end = pc.clock.time(e.point + pc.step_ratio)
             by = f" by {e.value:.3g}" if e.variable < len(self.outs[name]) else ""  # a String: no number
             sweeps = f"{int(e.integer)} sweep" + ("s" if e.integer != 1 else "")
             return SimulationError(
