@@ -45,7 +45,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
-    "set_input_derivatives",
+    "set_derivatives",
     "do_step",
     "get_real",
     "get_state",

@@ -14,16 +14,11 @@ from fractions import Fraction
 
 from lxml import etree
 
+from master.description import FLOATS, typed
 from master.schedule import Clock
 
 from .context import Context
-from .fmuinfo import (
-    FLOATS,
-    point_problem,
-    record_problem,
-    stimulus_problem,
-    typed,
-)
+from .fmuinfo import point_problem, record_problem, stimulus_problem
 from .model import Iteration, LoopSolver, Scheme, Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -407,9 +402,9 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        problem = stimulus_problem(var.type, version, kind, var.shape)
+        problem = stimulus_problem(var.fmi_type, version, kind, var.shape)
         if problem:
-            ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.type, var.shape)}: {problem}")
+            ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.fmi_type, var.shape)}: {problem}")
             ok = False
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")
