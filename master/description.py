@@ -237,9 +237,9 @@ class Capability:
     dependencies: dict[str, frozenset[str]] | None = None
     assumed: frozenset[str] = frozenset()  # outputs that declare no dependencies (`output_dependencies`)
     directional_derivatives: bool = False  # providesDirectionalDerivative(s), as fmpy reads it
-    interface: str = CO_SIMULATION  # or MODEL_EXCHANGE
-    model_identifier: str = ""
+    model_exchange: bool = False  # the flags of the Model Exchange interface (else Co-Simulation)
     event_indicators: int = 0  # Model Exchange: numberOfEventIndicators
+    model_identifier: str = ""
     completed_integrator_step: bool = False  # Model Exchange: needsCompletedIntegratorStep
 
     def depends(self, output: str, inputs: dict[str, Variable]) -> frozenset[str]:
@@ -286,9 +286,9 @@ def interfaces(md: ModelDescription) -> dict[str, Capability]:
             dependencies=depends,
             assumed=assumed,
             directional_derivatives=bool(kind.providesDirectionalDerivative),
-            interface=name,
-            model_identifier=kind.modelIdentifier or "",
+            model_exchange=name == MODEL_EXCHANGE,
             event_indicators=int(md.numberOfEventIndicators or 0) if name == MODEL_EXCHANGE else 0,
+            model_identifier=kind.modelIdentifier or "",
             completed_integrator_step=name == MODEL_EXCHANGE and bool(kind.needsCompletedIntegratorStep),
         )
     return out

@@ -70,11 +70,11 @@ def test_each_interface_has_its_own_flags(tmp_path):
     found = description.read(path)
     cs, me = found.co_simulation, found.model_exchange
     assert set(found.interfaces) == {CO_SIMULATION, MODEL_EXCHANGE}
-    assert (cs.interface, cs.can_get_set_state, cs.can_interpolate_inputs, cs.event_indicators) == (
-        CO_SIMULATION, True, True, 0
+    assert (cs.model_exchange, cs.can_get_set_state, cs.can_interpolate_inputs, cs.event_indicators) == (
+        False, True, True, 0
     )  # fmt: skip
-    assert (me.interface, me.can_get_set_state, me.can_interpolate_inputs, me.event_indicators) == (
-        MODEL_EXCHANGE, False, False, 2
+    assert (me.model_exchange, me.can_get_set_state, me.can_interpolate_inputs, me.event_indicators) == (
+        True, False, False, 2
     )  # fmt: skip
     assert me.completed_integrator_step and not cs.completed_integrator_step
     assert cs.model_identifier == me.model_identifier == "msd"
