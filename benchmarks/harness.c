@@ -6,6 +6,7 @@
  *     <params lines:  R|I|B <vr> <value>>
  *     <inputs lines:  <vr> <source component> <source output index>   (source -1: constant <value>)>
  *     <outputs lines: <vr> <read after step m of k: k flags 0/1>>
+ *   resample <count> <component index ...>
  *
  * Per macro step, every component in order: k times set all inputs (one fmi2SetReal), fmi2DoStep,
  * set them again where outputs depend on inputs (feedthrough 1: the master hands over the inputs
@@ -13,6 +14,11 @@
  * sample at the macro step's start (the master's order-0 Jacobi coupling; higher orders add a few
  * multiply-adds per input). The outputs at each macro step's end are copied into a results array,
  * as a recorder would. Prints the wall time of the stepping loop in seconds.
+ *
+ * With --equal-work it also makes the calls the master's semantics needs at each macro step's end
+ * (its resampling, kernel.h): each component of the `resample` line, in that order, sets its inputs
+ * to its sources' samples at the macro step's end and reads its outputs again, so that no output
+ * that depends on inputs lags its time. Without it, it is the bare loop of a master that lets them lag.
  *
  * Build: cc -O2 -std=c99 -o harness harness.c -ldl
  */
@@ -74,8 +80,9 @@ static double now(void) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: harness SCHEDULE\n");
+    const int equal_work = argc == 3 && strcmp(argv[2], "--equal-work") == 0;
+    if (argc != 2 && !equal_work) {
+        fprintf(stderr, "usage: harness SCHEDULE [--equal-work]\n");
         return 2;
     }
     FILE *f = fopen(argv[1], "r");
@@ -136,6 +143,12 @@ int main(int argc, char **argv) {
         if (((plain_fn)sym(lib, "fmi2ExitInitializationMode"))(c->c) > 1) return 3;
         if (c->n_out && c->get_real(c->c, c->out_vr, (size_t)c->n_out, c->out) > 1) return 3;
     }
+    int n_resample = 0;
+    if (fscanf(f, " resample %d", &n_resample) != 1) return 2;
+    int *resample = calloc((size_t)n_resample + 1, sizeof(int));
+    for (int r = 0; r < n_resample; r++)
+        if (fscanf(f, " %d", &resample[r]) != 1) return 2;
+    if (!equal_work) n_resample = 0;
     fclose(f);
     int n_rec = 0;
     for (int i = 0; i < nc; i++) n_rec += comps[i].n_out;
@@ -158,6 +171,13 @@ int main(int argc, char **argv) {
                 if (c->feedthrough && c->set_real(c->c, c->in_vr, (size_t)c->n_in, c->in) > 1) return 4;
                 if (c->n_out && c->reads[m] && c->get_real(c->c, c->out_vr, (size_t)c->n_out, c->out) > 1) return 4;
             }
+        }
+        for (int q = 0; q < n_resample; q++) { /* the step-end inputs final, the outputs read again */
+            component *c = &comps[resample[q]];
+            for (int j = 0; j < c->n_in; j++)
+                if (c->src[j] >= 0) c->in[j] = comps[c->src[j]].out[c->src_out[j]];
+            if (c->set_real(c->c, c->in_vr, (size_t)c->n_in, c->in) > 1) return 4;
+            if (c->get_real(c->c, c->out_vr, (size_t)c->n_out, c->out) > 1) return 4;
         }
         double *r = rows + (size_t)(row++ % 4096) * (size_t)(n_rec + 1);
         r[0] = (double)(n + 1) * H;

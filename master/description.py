@@ -93,6 +93,12 @@ FMI_FUNCTIONS = {
     "get_binary": (None, None, "fmi3GetBinary"),  # Binary connections and records only
     "set_binary": (None, None, "fmi3SetBinary"),
     "get_directional_derivative": (None, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative"),
+    # Model Exchange components, integrated by the kernel (kernel.h: mk_component.me)
+    "set_time": (None, "fmi2SetTime", "fmi3SetTime"),
+    "set_states": (None, "fmi2SetContinuousStates", "fmi3SetContinuousStates"),
+    "get_states": (None, "fmi2GetContinuousStates", "fmi3GetContinuousStates"),
+    "get_derivatives": (None, "fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
+    "completed_step": (None, "fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"),
 }
 
 
@@ -320,6 +326,11 @@ class Description:
         return self.interfaces.get(MODEL_EXCHANGE)
 
     @property
+    def integrable(self) -> bool:
+        """Whether the master can integrate it as a Model Exchange component (FMI 2.0 or 3.0)."""
+        return self.model_exchange is not None and self.fmi_version != "1.0"
+
+    @property
     def can_interpolate_inputs(self) -> bool:
         return self.co_simulation is not None and self.co_simulation.can_interpolate_inputs
 
@@ -374,12 +385,19 @@ def unsupported(md: ModelDescription, path: Path) -> str | None:
         return (
             f"FMI {md.fmiVersion} is not supported: the master runs FMI 1.0, 2.0 and 3.x co-simulation FMUs"
         )
-    if md.coSimulation is None:
-        return f"model '{md.modelName}' has no co-simulation interface"
+    if md.coSimulation is None and (md.modelExchange is None or md.fmiVersion == "1.0"):
+        return f"model '{md.modelName}' has no co-simulation interface (nor one of Model Exchange 2.0 or 3.0)"
     has = supported_platforms(str(path))
     if platform not in has and platform_tuple not in has:
         return f"no binary for this platform ({platform}); the FMU has: {', '.join(has) or 'none'}"
     return None
+
+
+def runs_as_model_exchange(md: ModelDescription, asked: bool = False) -> bool:
+    """Whether the master integrates an FMU of description `md` itself, as a Model Exchange
+    component: asked for (a component's modelExchange setting), or the FMU has no Co-Simulation
+    interface."""
+    return asked or md.coSimulation is None
 
 
 # -- reading modelDescription.xml -------------------------------------------------------------------

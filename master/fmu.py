@@ -28,6 +28,7 @@ from master.description import (
     hex_bytes,
     lookup,
     parse,
+    runs_as_model_exchange,
     typed,
     unsupported,
     variables_of,
@@ -195,11 +196,17 @@ class Fmu:
     the raw calls of the stepping loop) and `RealPort` get/set; `close()`.
     """
 
-    def __init__(self, path: Path, instance_name: str, workdir: Path | None = None):
+    def __init__(
+        self, path: Path, instance_name: str, workdir: Path | None = None, model_exchange: bool = False
+    ):
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
         self.fmi = int(self.md.fmiVersion[0])  # 1, 2 or 3
+        # instantiated for Model Exchange: the kernel integrates its states (kernel.h: mk_component.me)
+        self.model_exchange = runs_as_model_exchange(self.md, model_exchange)
+        if self.model_exchange and (self.md.modelExchange is None or self.fmi == 1):
+            raise FmuError(f"{instance_name}: {self.path.name} has no Model Exchange 2.0 or 3.0 interface")
         self.fmi3 = self.fmi == 3
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
@@ -220,30 +227,32 @@ class Fmu:
 
     # -- loading ------------------------------------------------------------------------------
     def _load(self) -> None:
+        kind = self.md.modelExchange if self.model_exchange else self.md.coSimulation
         kw = dict(
             guid=self.md.instantiationToken if self.fmi3 else self.md.guid,
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            modelIdentifier=kind.modelIdentifier,
             unzipDirectory=str(self.dir),
             instanceName=self.name,
         )
         try:
             if self.fmi3:
-                from fmpy.fmi3 import FMU3Slave
+                from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-                self.slave = FMU3Slave(**kw)
+                self.slave = (FMU3Model if self.model_exchange else FMU3Slave)(**kw)
                 self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
             else:
                 from fmpy import calloc, free
                 from fmpy.fmi2 import (
+                    FMU2Model,
                     FMU2Slave,
                     fmi2CallbackAllocateMemoryTYPE,
                     fmi2CallbackFreeMemoryTYPE,
                     fmi2CallbackFunctions,
                 )
 
-                self.slave = FMU2Slave(**kw)
+                self.slave = (FMU2Model if self.model_exchange else FMU2Slave)(**kw)
                 cb = fmi2CallbackFunctions()
                 cb.logger = _fmi2_logger()
                 cb.componentEnvironment = ctypes.c_void_p(self._log_key)
@@ -341,9 +350,14 @@ class Fmu:
         if not self.fmi3:
             self.raw_get_real = fn("fmi2GetReal")
             self.raw_set_real = fn("fmi2SetReal")
-            self.raw_do_step = fn("fmi2DoStep")
+            self.raw_do_step = None if self.model_exchange else fn("fmi2DoStep")  # ME: the kernel integrates
             return
         get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")
+        if self.model_exchange:
+            self.raw_get_real = lambda handle, vrs, count, ptr: get3(handle, vrs, count, ptr, count)
+            self.raw_set_real = lambda handle, vrs, count, ptr: set3(handle, vrs, count, ptr, count)
+            self.raw_do_step = None
+            return
         step3 = fn(
             "fmi3DoStep",
             [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool]
@@ -505,8 +519,26 @@ class Fmu:
             return
         try:
             self.slave.exitInitializationMode()
+            if self.model_exchange:
+                self._continuous_time()
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
+
+    def _continuous_time(self) -> None:
+        """A Model Exchange FMU after initialisation: the event iteration (new discrete states until
+        none are needed), then continuous-time mode."""
+        for _ in range(1000):
+            if self.fmi3:
+                needed, terminate, *_ = self.slave.updateDiscreteStates()
+            else:
+                needed, terminate, *_ = self.slave.newDiscreteStates()
+            if terminate:
+                raise FmuError(self.describe("ends the simulation at its initialisation"))
+            if not needed:
+                break
+        else:
+            raise FmuError(self.describe("its event iteration after initialisation never ends (1000 rounds)"))
+        self.slave.enterContinuousTimeMode()
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""

@@ -7,9 +7,9 @@ that into ``modelDescription.xml``.
 
 FMI 2.0 (the default) builds ``build/fmus/<name>.fmu`` with the layer's ``fmi2.c``; its
 checked-in ``fmus/<name>/modelDescription.xml`` must equal the generated one.  FMI 3.0
-Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c`` and an FMI 3.0
-description generated at build time (not checked in).  A table that uses FMI 3.0 types or
-arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  FMI 1.0 Co-Simulation
+Model Exchange and Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c``
+and an FMI 3.0 description generated at build time (not checked in).  A table that uses FMI 3.0
+types or arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  FMI 1.0 Co-Simulation
 (``fmi=1``) builds ``build/fmus/fmi1/<name>.fmu`` with ``fmi1.c`` (functions prefixed with the
 model identifier) and an FMI 1.0 description generated at build time.  ``build/fmus`` stands for
 BUILD_DIR: that folder in a checkout, the user's cache for an installed package, or
@@ -707,8 +707,8 @@ def _start_text3(v: dict[str, Any]) -> str:
 
 
 def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
-    """FMI 3.0 Co-Simulation modelDescription.xml.  Value references are the table positions
-    (unique across all types); `time`, the independent variable, takes the next one."""
+    """FMI 3.0 Model Exchange and Co-Simulation modelDescription.xml.  Value references are the
+    table positions (unique across all types); `time`, the independent variable, takes the next one."""
     _check_fmi3_table(name, desc)
     variables = desc["variables"]
     time_vr = len(variables)
@@ -722,6 +722,14 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         variableNamingConvention="flat",
     )
     scalars_only = not any(v["dimensions"] for v in variables)
+    etree.SubElement(  # as FMI 2.0's: no event indicators, no events
+        root,
+        "ModelExchange",
+        modelIdentifier=name,
+        canGetAndSetFMUState="true",
+        canSerializeFMUState="true",
+        providesDirectionalDerivatives="true" if scalars_only else "false",
+    )
     etree.SubElement(
         root,
         "CoSimulation",

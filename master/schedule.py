@@ -23,7 +23,7 @@ from master.scenario.fmuinfo import (
     recorded_as,
 )
 from master.scenario.loops import cycle_in, strongly_connected
-from master.scenario.model import Scenario, Scheme, Stimulus, Transformation
+from master.scenario.model import ModelExchange, Scenario, Scheme, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
@@ -149,6 +149,9 @@ class PlanComponent:
     clock: Clock
     interpolate_inputs: bool  # one step per macro step, inputs handed over as polynomials
     derivative_order: int  # highest input derivative handed to the FMU (0: none)
+    # a Model Exchange component (the kernel integrates it, its inputs the polynomials at every
+    # stage time: derivative_order as for an interpolating FMU); None: Co-Simulation
+    model_exchange: ModelExchange | None = None
 
 
 @dataclass(frozen=True)
@@ -221,6 +224,13 @@ class Plan:
                 if c.interpolate_inputs
                 else ""
             )
+            if c.model_exchange:
+                me = c.model_exchange
+                substep = f"steps of {float(me.internal_step):g} s" if me.internal_step else "one step"
+                extra = (
+                    f", Model Exchange integrated by the master with {me.solver} ({substep} per "
+                    "communication step), inputs as polynomials at every stage time"
+                )
             lines.append(f"  {c.name}: k = {c.ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
         for lk in self.links:
             how = "interpolated" if lk.source_first else "extrapolated"
@@ -274,7 +284,7 @@ def build_plan(
     links = _links(sc, variables, caps, comps)
     startup_steps, startup_sweeps = _startup(sc, caps, links, notes)
     for name, pc in comps.items():  # what an interpolating FMU is handed: its links' highest order
-        if pc.interpolate_inputs:
+        if pc.interpolate_inputs or pc.model_exchange:
             orders = [lk.order for lk in links if lk.consumer == name]
             comps[name] = dataclasses.replace(pc, derivative_order=max(orders, default=0))
     loops, fmu_notes = _loops(sc, variables, caps, links, notes)
@@ -319,7 +329,13 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
     comps: dict[str, PlanComponent] = {}
     for c in sc.components:
         cap = caps[c.name]
-        interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs)
+        me = (c.model_exchange or ModelExchange()) if c.model_exchange or cap.model_exchange else None
+        interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs and me is None)
+        if me is not None and cap.event_indicators:
+            notes.append(
+                f"{c.name}: its {cap.event_indicators} event indicators are not watched: the master does not "
+                "locate state events of Model Exchange FMUs yet (one that asks for event mode ends the run)"
+            )
         if c.interpolate_inputs and not interp:
             notes.append(
                 f"{c.name}: interpolate_inputs asked but the FMU cannot interpolate inputs "
@@ -331,7 +347,7 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
                 f"{c.name}: one doStep per macro step with its inputs as polynomials; its communication step "
                 f"{float(H / c.step_ratio):g} s is its internal step"
             )
-        comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0)
+        comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0, me)
     return comps
 
 

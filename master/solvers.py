@@ -2,7 +2,9 @@
 
 The one table of them: the values of the FMUs' `solver` parameter (their Enumeration "Solver"),
 which the C enumeration SolverKind in fmus/fmi/model.h must spell the same way (master.fmubuild
-checks it before every build), and the names the evidence and tuning modules use.
+checks it before every build; the kernel, which links the same solvers for Model Exchange
+components, reports SOLVER_COUNT to master.runtime.native), the methods a scenario names for a
+Model Exchange component, and the names the evidence and tuning modules use.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ SOLVERS = (
 )
 EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = (s.number for s in SOLVERS)
 SOLVER_NAMES = {s.number: s.short for s in SOLVERS}  # number -> its short name
+NUMBERS = {s.item: s.number for s in SOLVERS}  # item (a Model Exchange component's solver) -> number
+ITEMS = {s.number: s.item for s in SOLVERS}  # number -> item
 
 _SOLVER_KIND = re.compile(r"typedef\s+enum\s*\{([^}]*)\}\s*SolverKind\s*;")
 _ENUMERATOR = re.compile(r"\b(\w+)\s*=\s*(\d+)")

@@ -123,7 +123,7 @@ INTEGERS = {
 def test_fmu_is_valid_fmi3_cosimulation(alltypes: Fmu3) -> None:
     assert validate_fmu(str(alltypes.path)) == []
     md = alltypes.md
-    assert md.fmiVersion == "3.0" and md.modelExchange is None and md.coSimulation is not None
+    assert md.fmiVersion == "3.0" and md.modelExchange is not None and md.coSimulation is not None
     assert md.guid == fmubuild.describe("alltypes")["guid"]  # instantiationToken
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     root = etree.fromstring(zipfile.ZipFile(alltypes.path).read("modelDescription.xml"))

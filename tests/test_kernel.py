@@ -46,9 +46,10 @@ def echo(tmp_path_factory) -> Path:
 def test_kernel_compiles_warnings_clean(tmp_path):
     cc = shutil.which("cc") or shutil.which("gcc")
     flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fPIC", "-shared"]
-    run = subprocess.run(
-        [cc, *flags, str(native.SOURCE), "-o", str(tmp_path / "k.so"), "-lm"], capture_output=True
-    )
+    includes = [f"-I{d}" for d in native.INCLUDES]  # with the shared solvers it links (Model Exchange)
+    sources = [str(p) for p in (native.SOURCE, *native.SOLVER_SOURCES)]
+    out = str(tmp_path / "k.so")
+    run = subprocess.run([cc, *flags, *includes, *sources, "-o", out, "-lm"], capture_output=True)
     assert run.returncode == 0, run.stderr.decode()
 
 

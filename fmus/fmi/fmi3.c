@@ -12,9 +12,12 @@
  *   - fmi3DoStep: when the model ends the simulation (MODEL_TERMINATE) the step completes
  *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
  *     needs no event handling;
- *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply.
+ *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply;
+ *   - Model Exchange as FMI 2.0's (no event indicators, no time events, nominals 1): after
+ *     fmi3ExitInitializationMode the instance is in Event Mode, fmi3UpdateDiscreteStates has
+ *     nothing to update, fmi3EnterContinuousTimeMode, then the states, time and derivatives.
  * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
- * Model Exchange, Scheduled Execution, Event Mode, clocks, Configuration Mode, intermediate
+ * Scheduled Execution, Event Mode of Co-Simulation, clocks, Configuration Mode, intermediate
  * updates, output derivatives, adjoint derivatives, variable dependency queries.
  */
 #include <stdio.h>
@@ -83,11 +86,22 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
-    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logError",
-                   "fmi3InstantiateModelExchange: this FMU offers FMI 3.0 Co-Simulation only");
-    return NULL;
+    const char *name = instanceName ? instanceName : "";
+    char message[512];
+    Instance *inst;
+    (void)resourcePath, (void)visible;
+    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
+        snprintf(message, sizeof message,
+                 "fmi3InstantiateModelExchange: instantiation token \"%s\" does not match %s's \"%s\"",
+                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+        return NULL;
+    }
+    inst = instance_new(name, KIND_MODEL_EXCHANGE, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
+                        loggingOn);
+    if (!inst && logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logError", "fmi3InstantiateModelExchange: out of memory");
+    return inst;
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
@@ -124,11 +138,14 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     GUARD("fmi3EnterEventMode", ANY_STATE);
-    return unsupported(inst, "fmi3EnterEventMode", "the FMU has no Event Mode");
+    if (inst->kind == KIND_CO_SIMULATION) return unsupported(inst, "fmi3EnterEventMode", "the FMU has no Event Mode");
+    if (!check_state(inst, "fmi3EnterEventMode", S_EVENT | S_CONT)) return fmi3Error;
+    inst->core->state = ST_EVENT;
+    return fmi3OK;
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
-    GUARD("fmi3Terminate", S_STEP);
+    GUARD("fmi3Terminate", S_STEP | S_EVENT | S_CONT);
     inst->core->state = ST_TERMINATED;
     return fmi3OK;
 }
@@ -382,7 +399,7 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
                                         size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
                                         const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
                                         size_t nSensitivity) {
-    GUARD("fmi3GetDirectionalDerivative", S_INIT | S_STEP | S_TERM);
+    GUARD("fmi3GetDirectionalDerivative", S_INIT | S_STEP | S_EVENT | S_CONT | S_TERM);
     if (nSeed != nKnowns || nSensitivity != nUnknowns) {
         layer_log(inst, LOG_ERROR,
                   "fmi3GetDirectionalDerivative: %zu seeds for %zu knowns, %zu sensitivities for %zu unknowns "
@@ -482,67 +499,126 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
     GUARD("fmi3UpdateDiscreteStates", ANY_STATE);
-    (void)discreteStatesNeedUpdate, (void)terminateSimulation, (void)nominalsOfContinuousStatesChanged;
-    (void)valuesOfContinuousStatesChanged, (void)nextEventTimeDefined, (void)nextEventTime;
-    return unsupported(inst, "fmi3UpdateDiscreteStates", "the FMU has no Event Mode");
+    if (inst->kind == KIND_CO_SIMULATION)
+        return unsupported(inst, "fmi3UpdateDiscreteStates", "the FMU has no Event Mode");
+    if (!check_state(inst, "fmi3UpdateDiscreteStates", S_EVENT)) return fmi3Error;
+    /* no discrete states, no time events: nothing to update */
+    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
+    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = fmi3False;
+    if (nextEventTimeDefined) *nextEventTimeDefined = fmi3False;
+    if (nextEventTime) *nextEventTime = 0.0;
+    return fmi3OK;
 }
 
-/* ------------------------------------------- model exchange (not offered) */
+/* -------------------------------------------------------- model exchange */
 
-#define NO_ME(function)                                                                         \
-    GUARD(function, ANY_STATE);                                                                 \
-    return unsupported(inst, function, "this FMU offers FMI 3.0 Co-Simulation only")
+/* A Model Exchange call of a Model Exchange instance in one of the states `mask`. */
+#define ME_GUARD(function, mask)                                                                      \
+    GUARD(function, ANY_STATE);                                                                       \
+    if (inst->kind != KIND_MODEL_EXCHANGE)                                                            \
+        return unsupported(inst, function, "a Co-Simulation instance (fmi3InstantiateModelExchange)"); \
+    if (!check_state(inst, function, mask)) return fmi3Error
 
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { NO_ME("fmi3EnterContinuousTimeMode"); }
+static int check_nx(Instance *inst, const char *function, size_t nx) {
+    if (nx == (size_t)inst->model->n_states) return 1;
+    layer_log(inst, LOG_ERROR, "%s: nContinuousStates = %zu but the model has %d continuous states", function, nx,
+              inst->model->n_states);
+    return 0;
+}
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
+    ME_GUARD("fmi3EnterContinuousTimeMode", S_EVENT);
+    inst->core->state = ST_CONTINUOUS_TIME;
+    return fmi3OK;
+}
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
-    (void)noSetFMUStatePriorToCurrentPoint, (void)enterEventMode, (void)terminateSimulation;
-    NO_ME("fmi3CompletedIntegratorStep");
+    ME_GUARD("fmi3CompletedIntegratorStep", S_CONT);
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (enterEventMode) *enterEventMode = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    return fmi3OK;
 }
 
 fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
-    (void)time;
-    NO_ME("fmi3SetTime");
+    ME_GUARD("fmi3SetTime", S_EVENT | S_CONT);
+    if (!isfinite(time)) {
+        layer_log(inst, LOG_ERROR, "fmi3SetTime: time %g is not finite", time);
+        return fmi3Error;
+    }
+    inst->core->time = time;
+    mark_dirty(inst);
+    return fmi3OK;
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates, (void)nContinuousStates;
-    NO_ME("fmi3SetContinuousStates");
+    ME_GUARD("fmi3SetContinuousStates", S_CONT);
+    if (!check_nx(inst, "fmi3SetContinuousStates", nContinuousStates)) return fmi3Error;
+    for (size_t i = 0; i < nContinuousStates; i++) {
+        if (!isfinite(continuousStates[i])) {
+            layer_log(inst, LOG_ERROR, "fmi3SetContinuousStates: state %zu = %g is not finite at t = %.17g", i,
+                      continuousStates[i], inst->core->time);
+            return fmi3Error;
+        }
+    }
+    scatter_states(inst, continuousStates);
+    mark_dirty(inst);
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
                                              size_t nContinuousStates) {
-    (void)derivatives, (void)nContinuousStates;
-    NO_ME("fmi3GetContinuousStateDerivatives");
+    ME_GUARD("fmi3GetContinuousStateDerivatives", S_INIT | S_EVENT | S_CONT | S_TERM);
+    if (!check_nx(inst, "fmi3GetContinuousStateDerivatives", nContinuousStates)) return fmi3Error;
+    if (refresh(inst, 1, "fmi3GetContinuousStateDerivatives")) {
+        inst->core->state = ST_ERROR;
+        return fmi3Error;
+    }
+    for (size_t i = 0; i < nContinuousStates; i++) derivatives[i] = inst->reals[inst->model->derivative_slots[i]];
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
-    (void)eventIndicators, (void)nEventIndicators;
-    NO_ME("fmi3GetEventIndicators");
+    ME_GUARD("fmi3GetEventIndicators", S_INIT | S_EVENT | S_CONT | S_TERM);
+    (void)eventIndicators;
+    if (nEventIndicators != 0) {
+        layer_log(inst, LOG_ERROR, "fmi3GetEventIndicators: %zu asked but the model has no event indicators",
+                  nEventIndicators);
+        return fmi3Error;
+    }
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates, (void)nContinuousStates;
-    NO_ME("fmi3GetContinuousStates");
+    ME_GUARD("fmi3GetContinuousStates", S_INIT | S_EVENT | S_CONT | S_TERM);
+    if (!check_nx(inst, "fmi3GetContinuousStates", nContinuousStates)) return fmi3Error;
+    gather_states(inst, continuousStates);
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
                                              size_t nContinuousStates) {
-    (void)nominals, (void)nContinuousStates;
-    NO_ME("fmi3GetNominalsOfContinuousStates");
+    ME_GUARD("fmi3GetNominalsOfContinuousStates", S_INIT | S_EVENT | S_CONT | S_TERM);
+    if (!check_nx(inst, "fmi3GetNominalsOfContinuousStates", nContinuousStates)) return fmi3Error;
+    for (size_t i = 0; i < nContinuousStates; i++) nominals[i] = 1.0;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
-    (void)nEventIndicators;
-    NO_ME("fmi3GetNumberOfEventIndicators");
+    ME_GUARD("fmi3GetNumberOfEventIndicators", ANY_STATE);
+    if (nEventIndicators) *nEventIndicators = 0;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
-    (void)nContinuousStates;
-    NO_ME("fmi3GetNumberOfContinuousStates");
+    ME_GUARD("fmi3GetNumberOfContinuousStates", ANY_STATE);
+    if (nContinuousStates) *nContinuousStates = (size_t)inst->model->n_states;
+    return fmi3OK;
 }
 
 /* --------------------------------------------------------- co-simulation */

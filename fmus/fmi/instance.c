@@ -111,8 +111,12 @@ Instance *instance_new(const char *name, InstanceKind kind, int fmi_version, Emi
     inst->fd_seed_base = calloc((size_t)nv + 1, sizeof(double));
     inst->fd_plus = calloc((size_t)nv + 1, sizeof(double));
     inst->fd_minus = calloc((size_t)nv + 1, sizeof(double));
+    inst->rhs_x = calloc((size_t)n + 1, sizeof(double));
+    inst->rhs_dx = calloc((size_t)n + 1, sizeof(double));
+    inst->rhs_u = calloc((size_t)inst->n_real_inputs + 1, sizeof(double));
     if (!inst->block || (n > 0 && !inst->work) || !inst->x || !inst->dx || !inst->input_values || !inst->jac ||
-        !inst->saved_reals || !inst->fd_seed_base || !inst->fd_plus || !inst->fd_minus)
+        !inst->saved_reals || !inst->fd_seed_base || !inst->fd_plus || !inst->fd_minus || !inst->rhs_x ||
+        !inst->rhs_dx || !inst->rhs_u)
         goto fail;
     layout(inst, inst->block);
     instance_reset(inst);
@@ -138,6 +142,9 @@ void instance_free(Instance *inst) {
     free(inst->fd_seed_base);
     free(inst->fd_plus);
     free(inst->fd_minus);
+    free(inst->rhs_x);
+    free(inst->rhs_dx);
+    free(inst->rhs_u);
     free(inst);
 }
 
@@ -190,6 +197,7 @@ void instance_reset(Instance *inst) {
     solver_reset(inst->memory, m->n_states);
     inst->core->state = ST_INSTANTIATED;
     mark_dirty(inst);
+    forget_rhs(inst);
 }
 
 /* FMI 3.0's independent variable: not in the tables, value reference n_variables. */
@@ -344,8 +352,33 @@ void mark_dirty(Instance *inst) {
     inst->core->derivatives_dirty = 1;
 }
 
+void keep_rhs(Instance *inst, double t, const double *x, const double *dx) {
+    const size_t n = (size_t)inst->model->n_states;
+    inst->rhs_t = t;
+    memcpy(inst->rhs_x, x, n * sizeof(double));
+    memcpy(inst->rhs_dx, dx, n * sizeof(double));
+    for (int i = 0; i < inst->n_real_inputs; i++) inst->rhs_u[i] = inst->reals[inst->real_input_slot[i]];
+    inst->rhs_kept = 1;
+}
+
+int kept_rhs(Instance *inst, double t, const double *x, double *dx) {
+    const size_t n = (size_t)inst->model->n_states;
+    if (!inst->rhs_kept || (!inst->model->autonomous && memcmp(&t, &inst->rhs_t, sizeof t) != 0)) return 0;
+    if (memcmp(x, inst->rhs_x, n * sizeof(double)) != 0) return 0;
+    for (int i = 0; i < inst->n_real_inputs; i++) /* to the bit: -0.0 is not 0.0 here */
+        if (memcmp(&inst->reals[inst->real_input_slot[i]], &inst->rhs_u[i], sizeof(double)) != 0) return 0;
+    memcpy(dx, inst->rhs_dx, n * sizeof(double));
+    return 1;
+}
+
+void forget_rhs(Instance *inst) { inst->rhs_kept = 0; }
+
 void note_set(Instance *inst, const unsigned vr[], size_t nvr) {
     mark_dirty(inst);
+    for (size_t i = 0; i < nvr && inst->rhs_kept; i++) { /* a parameter or a discrete input: f changed */
+        const Variable *v = &inst->model->variables[vr[i]];
+        if (v->causality != C_INPUT || v->type != T_REAL) forget_rhs(inst);
+    }
     if (inst->core->state != ST_INITIALIZATION) return;
     for (size_t i = 0; i < nvr; i++)
         if (inst->model->variables[vr[i]].causality != C_INPUT) inst->core->initialized = 0;
@@ -372,6 +405,10 @@ int eval_outputs(Instance *inst) {
         inst->core->terminate = 1;
         return 0;
     }
+    if (st == MODEL_OK && m->outputs_give_derivatives && m->n_states) {
+        for (int i = 0; i < m->n_states; i++) inst->dx[i] = inst->reals[m->derivative_slots[i]];
+        keep_rhs(inst, inst->core->time, inst->x, inst->dx);
+    }
     return st != MODEL_OK;
 }
 
@@ -381,6 +418,7 @@ int eval_derivatives(Instance *inst) {
     gather_states(inst, inst->x);
     if (m->derivatives(inst, inst->core->time, inst->x, inst->dx) != MODEL_OK) return 1;
     for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
+    keep_rhs(inst, inst->core->time, inst->x, inst->dx);
     return 0;
 }
 
@@ -443,6 +481,7 @@ void enter_initialization(Instance *inst) {
     inst->core->state = ST_INITIALIZATION;
     inst->core->initialized = 0;
     mark_dirty(inst);
+    forget_rhs(inst);
 }
 
 LayerStatus exit_initialization(Instance *inst, const char *function) {
@@ -499,6 +538,7 @@ LayerStatus state_set(Instance *inst, const char *function, const void *state) {
         return LAYER_ERROR;
     }
     memcpy(inst->block, s->data, inst->block_size);
+    forget_rhs(inst); /* the locals an evaluation wrote are back as they were */
     return LAYER_OK;
 }
 

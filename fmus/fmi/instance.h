@@ -122,6 +122,13 @@ struct Instance {
     double *saved_reals;     /* n_reals: finite differences restore from here */
     double *fd_seed_base;    /* n_variables: known values around which to differentiate */
     double *fd_plus, *fd_minus; /* n_variables */
+
+    /* the latest evaluation of f (keep_rhs): not state, forgotten when anything but a Real input or
+     * the states and time changes */
+    int rhs_kept;
+    double rhs_t;
+    double *rhs_x, *rhs_dx;  /* n_states */
+    double *rhs_u;           /* n_real_inputs */
 };
 
 /* log.c */
@@ -171,6 +178,11 @@ int prepare_get(Instance *inst, const char *function, const unsigned vr[], size_
 void gather_states(Instance *inst, double *x);       /* state slots -> x */
 void scatter_states(Instance *inst, const double *x); /* x -> state slots */
 void mark_dirty(Instance *inst);
+/* Keep dx = f(t, x) at the current Real inputs; kept_rhs: 1 and dx if (t, x, inputs) match it
+ * (t ignored for an autonomous model), else 0; forget_rhs: none kept. */
+void keep_rhs(Instance *inst, double t, const double *x, const double *dx);
+int kept_rhs(Instance *inst, double t, const double *x, double *dx);
+void forget_rhs(Instance *inst);
 /* After SetXXX of vr[0..nvr): outputs are stale; in Initialization Mode a changed
  * parameter or start value also means MODEL.initialize must run again. */
 void note_set(Instance *inst, const unsigned vr[], size_t nvr);

@@ -135,6 +135,15 @@ typedef struct {
      * MODEL_TERMINATE (after writing the outputs): the simulation ends at time t; in a step
      * the layer reports it when the step that reached t completes. */
     ModelStatus (*outputs)(Instance *inst, double t, const double *x);
+
+    /* 1: `outputs` also writes the derivative slots with f(t, x) as `derivatives` computes it. The
+     * layer keeps the latest evaluation of f (time, states, Real inputs and the result), so that a
+     * step whose first evaluation has the same arguments does not repeat it: the master reads
+     * outputs that depend on inputs again at a communication point, then steps from there. */
+    int outputs_give_derivatives;
+    /* 1: f does not depend on t itself, so a kept evaluation serves whatever the rounding of the
+     * communication point's time (else the time must match to the bit). */
+    int autonomous;
 } ModelDef;
 
 extern const ModelDef MODEL;

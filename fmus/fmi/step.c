@@ -30,6 +30,7 @@ int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
     Instance *inst = ctx;
     if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
     if (!inst->model->derivatives) return 0; /* no states: nothing to integrate */
+    if (kept_rhs(inst, t, x, dx)) return 0;  /* evaluated already: the master read outputs there */
     ModelStatus st = inst->model->derivatives(inst, t, x, dx);
     if (st == MODEL_FATAL) inst->core->fatal = 1;
     if (st == MODEL_TERMINATE) { /* the step completes; the simulation ends after it */

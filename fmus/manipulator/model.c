@@ -890,4 +890,6 @@ const ModelDef MODEL = {
     .derivatives = derivatives,
     .jacobian = NULL,
     .outputs = outputs,
+    .outputs_give_derivatives = 1, /* outputs() runs motion() as derivatives() does */
+    .autonomous = 1,
 };

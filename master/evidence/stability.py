@@ -21,6 +21,7 @@ from master.evidence.linear import LinearComponent, LinearScheme
 from master.evidence.reference import _DOUBLE_P, _Scene, break_points
 from master.recorder import signal_columns
 from master.scenario.model import Scenario
+from master.solvers import NUMBERS
 
 
 def state_at(scene: _Scene, scenario: Scenario, t: float, rtol: float = 1e-8) -> np.ndarray:
@@ -91,7 +92,8 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
     Each component is modelled as the runtime steps it (master.api.plan): its effective step
     ratio, its inputs held or as polynomials (an FMU that interpolates its inputs: one doStep per
     macro step), its solver (parameter "solver") and its solver steps per communication step
-    (parameter "internal_step"; 0: one). order: the extrapolation order (default: the largest
+    (parameter "internal_step"; 0: one); a Model Exchange component its `solver` and `internalStep`,
+    its inputs as polynomials. order: the extrapolation order (default: the largest
     of the scene's components).
     """
     from master.api import plan as make_plan
@@ -119,6 +121,9 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
             internal = float(comp.parameters.get("internal_step", m.fmu.getReal([m.vr["internal_step"]])[0]))
             substeps = max(1, round(float(pc.step) / internal)) if internal > 0 else 1
             mode = "polynomial" if pc.interpolate_inputs else "hold"
+            if pc.model_exchange:  # the master integrates it: its method, its steps, inputs at every stage
+                me = pc.model_exchange
+                solver, substeps, mode = NUMBERS[me.solver], me.substeps(pc.step) or 1, "polynomial"
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
                                          step_ratio=pc.ratio, substeps=substeps, order=k_in,
                                          input_mode=mode))  # fmt: skip

@@ -2,6 +2,7 @@
  * macro-step loop with recording and real-time pacing. */
 #define _GNU_SOURCE /* syscall (futex), clock_nanosleep */
 #include "kernel.h"
+#include "solvers.h" /* the fixed-step methods and the LU of fmus/solvers, shared with the project's FMUs */
 
 #include <float.h>
 #include <limits.h>
@@ -50,6 +51,12 @@ typedef int fmi3_get_string(void *, const uint32_t *, size_t, const char **, siz
 typedef int fmi3_set_string(void *, const uint32_t *, size_t, const char *const *, size_t);
 typedef int fmi3_get_binary(void *, const uint32_t *, size_t, size_t *, const uint8_t **, size_t);
 typedef int fmi3_set_binary(void *, const uint32_t *, size_t, const size_t *, const uint8_t *const *, size_t);
+/* Model Exchange (FMI 2 and 3 alike but for the Booleans of fmi2/3CompletedIntegratorStep) */
+typedef int fmi_set_time(void *, double);
+typedef int fmi_set_states(void *, const double *, size_t);
+typedef int fmi_get_states(void *, double *, size_t);
+typedef int fmi2_completed_step(void *, int, int32_t *, int32_t *);
+typedef int fmi3_completed_step(void *, bool, bool *, bool *);
 #define FMI2_DISCARD 2
 #define FMI2_TERMINATED 3 /* fmi2StatusKind fmi2Terminated */
 
@@ -83,6 +90,7 @@ void mk_constants(int64_t *values) {
     values[9] = MK_LOOP_FIXED_POINT;
     values[10] = MK_EDGE_ASSUMED;
     values[11] = MK_LOOP_STATS;
+    values[12] = SOLVER_COUNT; /* the shared solvers (model.h), numbered 1 .. SOLVER_COUNT */
 }
 
 static int64_t now_ns(void) {
@@ -830,6 +838,130 @@ static void mark_idle(mk_kernel *k) {
     if (k->shared) __atomic_store_n(&k->shared->busy[0], 0, __ATOMIC_RELEASE);
 }
 
+/* -- Model Exchange components (kernel.h: mk_component.me) ----------------------------------------- */
+
+static int get_directional_derivative(const mk_component *c, const uint32_t *unknowns, size_t n_unknowns,
+                                      const uint32_t *known, const double *seed, double *out);
+
+/* What the solver's right-hand side of an ME component needs: the communication step's input blocks
+ * and point, and the failing call. */
+typedef struct {
+    mk_component *c;
+    const double *u;
+    double t0;
+    int32_t call;
+    int status;
+} me_context;
+
+/* The Real inputs at time t from the step's polynomials, in the arithmetic of an FMU that
+ * interpolates its inputs (fmus/fmi/step.c), set; held inputs stay as set_inputs left them. */
+static int me_set_inputs(me_context *m, double t) {
+    mk_component *c = m->c;
+    const int32_t nd = c->n_blocks - c->n_values, n_in = c->n_in;
+    if (nd == 0 || c->n_in_real == 0) return STATUS_OK;
+    const double dt = t - m->t0, *d = m->u + (size_t)c->n_values * n_in;
+    for (int32_t i = 0; i < c->n_in_real; i++) {
+        double d1 = d[i], d2 = nd > 1 ? d[n_in + i] : 0.0, d3 = nd > 2 ? d[2 * n_in + i] : 0.0;
+        c->scratch[i] = m->u[i] + dt * (d1 + dt * (d2 / 2.0 + dt * d3 / 6.0));
+    }
+    m->call = MK_CALL_SET_REAL;
+    return set_real(c, c->in_vrs, c->n_in_real, c->scratch, c->n_in_real);
+}
+
+/* The FMU at time t with states x and the inputs of time t. */
+static int me_set_point(me_context *m, double t, const double *x) {
+    mk_component *c = m->c;
+    m->call = MK_CALL_SET_TIME;
+    if ((m->status = ((fmi_set_time *)c->set_time)(c->instance, t)) > STATUS_OK) return 1;
+    if ((m->status = me_set_inputs(m, t)) > STATUS_OK) return 1;
+    m->call = MK_CALL_SET_STATES;
+    if (c->n_states && (m->status = ((fmi_set_states *)c->set_states)(c->instance, x, (size_t)c->n_states)) > STATUS_OK)
+        return 1;
+    return 0;
+}
+
+/* RhsFn: dx = f(t, x) from fmi2GetDerivatives / fmi3GetContinuousStateDerivatives. */
+static int me_rhs(void *ctx, double t, const double *x, double *dx) {
+    me_context *m = ctx;
+    if (me_set_point(m, t, x)) return 1;
+    m->call = MK_CALL_GET_DERIVATIVES;
+    m->status = ((fmi_get_states *)m->c->get_derivatives)(m->c->instance, dx, (size_t)m->c->n_states);
+    return m->status > STATUS_OK;
+}
+
+/* JacFn: df/dx at (t, x), a column per state from directional derivatives of the derivatives. */
+static int me_jacobian(void *ctx, double t, const double *x, double *J) {
+    me_context *m = ctx;
+    mk_component *c = m->c;
+    const int32_t n = c->n_states;
+    double column[n];
+    if (me_set_point(m, t, x)) return 1;
+    m->call = MK_CALL_DIRECTIONAL_DERIVATIVE;
+    for (int32_t j = 0; j < n; j++) {
+        const double seed = 1.0;
+        m->status = get_directional_derivative(c, c->me_derivative_vrs, (size_t)n, &c->me_state_vrs[j], &seed, column);
+        if (m->status > STATUS_OK) return 1;
+        for (int32_t i = 0; i < n; i++) J[i * n + j] = column[i];
+    }
+    return 0;
+}
+
+/* fmi2/3CompletedIntegratorStep at time t with states x: *event, *terminate as the FMU says. */
+static int me_completed(me_context *m, double t, const double *x, bool final, bool *event, bool *terminate) {
+    mk_component *c = m->c;
+    if (me_set_point(m, t, x)) return m->status;
+    m->call = MK_CALL_COMPLETED_STEP;
+    if (c->fmi == 3) return ((fmi3_completed_step *)c->completed_step)(c->instance, final, event, terminate);
+    int32_t e = 0, end = 0;
+    int st = ((fmi2_completed_step *)c->completed_step)(c->instance, final ? 1 : 0, &e, &end);
+    *event = e != 0;
+    *terminate = end != 0;
+    return st;
+}
+
+/* One communication step of ME component ci from point j (time t), inputs u: its states integrated
+ * to t + h by me_substeps steps of its solver (the substep times from the integer s, as the
+ * project's FMUs take theirs), the FMU left at t + h with the step-start inputs. *terminate: 1 when
+ * the FMU asks to end the simulation. A directional derivative that fails makes the Jacobian
+ * finite differences from then on (as the loops'). */
+static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int64_t j, bool final, int *terminate) {
+    mk_component *c = &k->components[ci];
+    me_context m = {c, u, t, MK_CALL_GET_STATES, STATUS_OK};
+    const int32_t n = c->n_states, steps = c->me_substeps;
+    const double h = c->h / (double)steps;
+    if (n && (m.status = ((fmi_get_states *)c->get_states)(c->instance, c->me_x, (size_t)n)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
+    for (int32_t s = 0; s < steps; s++) {
+        int rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs,
+                             c->me_state_vrs ? me_jacobian : NULL, &m, t + (double)s * h, h, c->me_x);
+        if (rc == 1 && m.call == MK_CALL_DIRECTIONAL_DERIVATIVE) { /* not this FMU's after all: */
+            c->me_state_vrs = NULL;                                 /* finite differences from now on */
+            rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs, NULL, &m,
+                             t + (double)s * h, h, c->me_x);
+        }
+        if (rc == 1) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
+        if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
+        bool event = false, end = false;
+        const double te = s + 1 == steps ? t + c->h : t + (double)(s + 1) * h; /* the last: t + h exactly */
+        int st = me_completed(&m, te, c->me_x, final, &event, &end);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, m.call, st, j);
+        if (event) return fail(k, MK_EVENT, ci, MK_CALL_COMPLETED_STEP, st, j);
+        if (end) *terminate = 1;
+    }
+    /* the step-start inputs again, as an interpolating FMU has them after its step */
+    if (c->n_blocks > c->n_values && c->n_in_real && (m.status = set_real(c, c->in_vrs, c->n_in_real, u, c->n_in_real)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, m.status, j);
+    return MK_DONE;
+}
+
+/* Start-up: an ME component's multistep history saved with its FMU state (save) or restored. */
+static void me_history(mk_component *c, bool save) {
+    if (!c->me) return;
+    const size_t size = sizeof(double) * solver_memory_size(c->n_states);
+    if (save) memcpy(c->me_memory_saved, c->me_memory, size);
+    else memcpy(c->me_memory, c->me_memory_saved, size);
+}
+
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
@@ -849,7 +981,9 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
-        if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
+        if (c->me) {
+            if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
+        } else if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
             request_stop(k, ci, j - 1, n);
@@ -1046,41 +1180,6 @@ static int32_t loop_jacobian(mk_kernel *k, mk_loop *L, int64_t n, const double *
 }
 
 /* LU factors of the n x n matrix a in place, rows exchanged as piv says; false if singular. */
-static bool lu_factor(double *a, int32_t *piv, int32_t n) {
-    for (int32_t c = 0; c < n; c++) {
-        int32_t p = c;
-        for (int32_t r = c + 1; r < n; r++)
-            if (fabs(a[r * n + c]) > fabs(a[p * n + c])) p = r;
-        piv[c] = p;
-        if (!(fabs(a[p * n + c]) > 0.0) || !isfinite(a[p * n + c])) return false;
-        if (p != c)
-            for (int32_t q = 0; q < n; q++) {
-                double t = a[c * n + q];
-                a[c * n + q] = a[p * n + q];
-                a[p * n + q] = t;
-            }
-        for (int32_t r = c + 1; r < n; r++) {
-            a[r * n + c] /= a[c * n + c];
-            for (int32_t q = c + 1; q < n; q++) a[r * n + q] -= a[r * n + c] * a[c * n + q];
-        }
-    }
-    return true;
-}
-
-static void lu_solve(const double *a, const int32_t *piv, int32_t n, double *b) {
-    for (int32_t c = 0; c < n; c++) {
-        double t = b[c];
-        b[c] = b[piv[c]];
-        b[piv[c]] = t;
-    }
-    for (int32_t r = 0; r < n; r++)
-        for (int32_t q = 0; q < r; q++) b[r] -= a[r * n + q] * b[q];
-    for (int32_t r = n - 1; r >= 0; r--) {
-        for (int32_t q = r + 1; q < n; q++) b[r] -= a[r * n + q] * b[q];
-        b[r] /= a[r * n + r];
-    }
-}
-
 /* The first solve's test of what the FMUs only assumed: entries of `jac` exactly zero where the
  * dependency was assumed are dropped; if no cycle among the members is left, the loop becomes a
  * sequence (kernel.h: mk_loop). */
@@ -1155,11 +1254,11 @@ static void anderson(mk_loop *L, int32_t it, const double *x, const double *r, d
             a[p * m + q] = s;
         }
     }
-    if (!lu_factor(a, L->pivot, m)) { /* dependent differences: start the memory again */
+    if (lu_factor(m, a, L->pivot) != 0) { /* dependent differences: start the memory again */
         L->n_history = 0;
         return;
     }
-    lu_solve(a, L->pivot, m, g);
+    lu_solve(m, a, L->pivot, g);
     for (int32_t p = 0; p < m; p++)
         for (int32_t i = 0; i < N; i++) dx[i] -= g[p] * (dX[p * N + i] + dR[p * N + i]);
 }
@@ -1222,9 +1321,9 @@ static int32_t solve_loop(mk_kernel *k, int32_t l, int64_t n) {
                 have_jacobian = false;
                 for (int32_t i = 0; i < N; i++)
                     for (int32_t j = 0; j < N; j++) lu[i * N + j] = (i == j) - jac[i * N + j];
-                L->fresh = lu_factor(lu, L->pivot, N);
+                L->fresh = lu_factor(N, lu, L->pivot) == 0;
             }
-            if (L->fresh) lu_solve(lu, L->pivot, N, dx); /* singular: a plain fixed-point step */
+            if (L->fresh) lu_solve(N, lu, L->pivot, dx); /* singular: a plain fixed-point step */
         } else
             anderson(L, it, x, r, dx);
         for (int32_t i = 0; i < N; i++) x[i] += dx[i];
@@ -1300,6 +1399,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
         if (!c->local) continue;
         mark_busy(k, saved);
         int st = ((fmi_get_state *)c->get_state)(c->instance, &c->saved_state);
+        me_history(c, true);
         mark_idle(k);
         if (st > STATUS_OK) {
             code = fail(k, MK_FMI_ERROR, saved, MK_CALL_GET_STATE, st, n * c->ratio);
@@ -1324,6 +1424,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
             if (!c->local) continue;
             mark_busy(k, i);
             int st = ((fmi_set_state *)c->set_state)(c->instance, c->saved_state);
+            me_history(c, false);
             mark_idle(k);
             if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
             else code = macro_step(k, i, n, true);

@@ -50,6 +50,7 @@ enum {
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
     MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
                               the residual, the iterations) */
+    MK_EVENT = 11,         /* a Model Exchange FMU asked for event mode (events are not handled yet) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -66,6 +67,10 @@ enum {
     MK_CALL_GET_STATE, MK_CALL_SET_STATE, MK_CALL_FREE_STATE, MK_CALL_GET_INTEGER, MK_CALL_GET_BOOLEAN,
     MK_CALL_SET_INTEGER, MK_CALL_SET_BOOLEAN, MK_CALL_GET_TYPED, MK_CALL_SET_TYPED, MK_CALL_GET_STRING,
     MK_CALL_SET_STRING, MK_CALL_GET_BINARY, MK_CALL_SET_BINARY,
+    /* Model Exchange (mk_component.me): the calls of an integration step, and its solver (status: the
+     * solver's code, 2: a singular linear system) */
+    MK_CALL_SET_TIME, MK_CALL_SET_STATES, MK_CALL_GET_STATES, MK_CALL_GET_DERIVATIVES, MK_CALL_COMPLETED_STEP,
+    MK_CALL_DIRECTIONAL_DERIVATIVE, MK_CALL_SOLVER,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -250,6 +255,26 @@ typedef struct {
     /* counted as they happen, in shared memory: a worker that dies or hangs leaves its counts */
     int64_t *steps;   /* communication steps */
     double *fmu_time; /* wall time inside FMI calls, s */
+    /* Model Exchange (me = 1): the kernel integrates the FMU's n_states continuous states itself, in
+     * each communication step from t to t + h by me_substeps steps of the shared solver me_solver
+     * (fmus/solvers: SolverKind), its Real inputs at every stage time the polynomial of the step's
+     * blocks (value at t, then derivatives: u(s) = u0 + d1 dt + d2 dt^2 / 2 + d3 dt^3 / 6, as a
+     * Co-Simulation FMU that interpolates its inputs evaluates it), then fmi2/3CompletedIntegratorStep
+     * after each step; its outputs are read as a Co-Simulation FMU's. me_state_vrs and
+     * me_derivative_vrs (NULL: none) give the semi-implicit methods their Jacobian from directional
+     * derivatives, else finite differences. me_memory is the multistep history (solver_memory_size
+     * doubles), saved with the FMU state in start-up (me_memory_saved); me_work a SolverWork. */
+    int32_t me;
+    int32_t me_solver;
+    int32_t me_substeps;
+    int32_t n_states;
+    mk_function set_time, set_states, get_states, get_derivatives, completed_step;
+    const uint32_t *me_state_vrs;
+    const uint32_t *me_derivative_vrs;
+    double *me_x;            /* [n_states] */
+    double *me_memory;
+    double *me_memory_saved;
+    void *me_work;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the
@@ -405,7 +430,8 @@ typedef struct {
 /* Sizes of the structures, for the ctypes mirror to check itself against. */
 void mk_layout(int64_t *sizes);
 /* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS,
- * MK_STRING_SLOT, MK_TEXT_MAX, MK_TRANSFORM_NONE, MK_TRANSFORM_LINEAR, MK_TRANSFORM_MAP. */
+ * MK_STRING_SLOT, MK_TEXT_MAX, MK_TRANSFORM_NONE, MK_TRANSFORM_LINEAR, MK_TRANSFORM_MAP, the loops',
+ * SOLVER_COUNT (the Model Exchange components' methods, master.solvers.SOLVERS). */
 void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
 from master.schedule import EDGE_ASSUMED
+from master.solvers import SOLVERS
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
@@ -27,6 +28,11 @@ HEADER = HERE / "kernel.h"
 # uses the library pip built (its kernel.c, shipped for reference, may be unpacked after it)
 CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
+# the fixed-step methods and the LU the project's FMUs use (fmus/solvers), linked into the kernel for
+# Model Exchange components and algebraic loops: one implementation (setup.py builds the same)
+FMUS = HERE.parent.parent / "fmus"
+SOLVER_SOURCES = [FMUS / "solvers" / "solvers.c", FMUS / "solvers" / "lu.c"]
+INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for SolverKind
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
 (
@@ -41,7 +47,8 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
     INEXACT,
     TOO_LONG,
     NOT_CONVERGED,
-) = range(11)
+    EVENT,
+) = range(12)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -61,6 +68,14 @@ CALLS = (
     "set_string",
     "get_binary",
     "set_binary",
+    # Model Exchange (kernel.h: mk_component.me)
+    "set_time",
+    "set_states",
+    "get_states",
+    "get_derivatives",
+    "completed_step",
+    "directional_derivative",
+    "solver",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -89,6 +104,8 @@ CONSTANTS = {
     **{f"MK_LOOP_{m.upper().replace('-', '_')}": code for code, m in enumerate(LOOP_METHODS)},
     "MK_EDGE_ASSUMED": EDGE_ASSUMED,
     "MK_LOOP_STATS": 8,
+    # the shared solvers' methods (fmus/fmi/model.h SolverKind 1..SOLVER_COUNT), master.solvers.SOLVERS
+    "SOLVER_COUNT": len(SOLVERS),
 }
 # a loop's counters (kernel.h mk_loop.stats), in their order
 LOOP_STATS = ("solves", "iterations", "evaluations", "jacobians", "most", "sequential")
@@ -258,6 +275,21 @@ class Component(C.Structure):
         ("saved_state", _p),
         ("steps", C.POINTER(_i64)),
         ("fmu_time", C.POINTER(_f64)),
+        ("me", _i32),
+        ("me_solver", _i32),
+        ("me_substeps", _i32),
+        ("n_states", _i32),
+        ("set_time", _p),
+        ("set_states", _p),
+        ("get_states", _p),
+        ("get_derivatives", _p),
+        ("completed_step", _p),
+        ("me_state_vrs", C.POINTER(_u32)),
+        ("me_derivative_vrs", C.POINTER(_u32)),
+        ("me_x", C.POINTER(_f64)),
+        ("me_memory", C.POINTER(_f64)),
+        ("me_memory_saved", C.POINTER(_f64)),
+        ("me_work", _p),
     ]
 
 
@@ -391,8 +423,10 @@ def _compile() -> Path:
     fd, tmp = tempfile.mkstemp(dir=HERE, prefix="._kernel", suffix=".so")
     os.close(fd)
     try:
+        includes = [f"-I{d}" for d in INCLUDES]
+        sources = [str(p) for p in (SOURCE, *SOLVER_SOURCES)]
         run = subprocess.run(
-            [cc, *CFLAGS, "-shared", str(SOURCE), "-o", tmp, "-lm"], capture_output=True, text=True
+            [cc, *CFLAGS, *includes, "-shared", *sources, "-o", tmp, "-lm"], capture_output=True, text=True
         )
         if run.returncode:
             raise KernelBuildError(f"building {SOURCE.name} failed:\n{run.stderr.strip()}")
@@ -409,7 +443,8 @@ def library() -> C.CDLL:
     """The kernel library with typed functions, built first where needed."""
     path = _built()
     if CHECKOUT:  # a developer's edit of kernel.c must not run stale code
-        sources = [p.stat().st_mtime for p in (SOURCE, HEADER) if p.exists()]
+        solvers = [*SOLVER_SOURCES, FMUS / "solvers" / "solvers.h", FMUS / "fmi" / "model.h"]
+        sources = [p.stat().st_mtime for p in (SOURCE, HEADER, *solvers) if p.exists()]
         if path is None or (sources and max(sources) > path.stat().st_mtime):
             path = _compile()
     elif path is None:
@@ -439,4 +474,10 @@ def library() -> C.CDLL:
     lib.mk_publish.restype = None
     for f in (lib.mk_initial_sweep, lib.mk_record_row, lib.mk_run):
         f.restype = _i32
+    lib.solver_work_new.argtypes = [C.c_int]  # a Model Exchange component's solver work space
+    lib.solver_work_new.restype = _p
+    lib.solver_work_free.argtypes = [_p]
+    lib.solver_work_free.restype = None
+    lib.solver_memory_size.argtypes = [C.c_int]
+    lib.solver_memory_size.restype = C.c_size_t
     return lib

@@ -12,8 +12,10 @@ from __future__ import annotations
 import ctypes as C
 import math
 import mmap
+import weakref
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from master.backends.component import (
     GROWTH_LIMIT,
@@ -28,7 +30,7 @@ from master.description import FMI_FUNCTIONS, lookup
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
-from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
+from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS, ModelExchange
 from master.schedule import (
     EDGE_ASSUMED,
     KINDS,
@@ -40,12 +42,16 @@ from master.schedule import (
     connection_name,
     value_kind,
 )
+from master.solvers import NUMBERS
 
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
 SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking one costs ~50-100 us)
 
 Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
+
+ME_CALLS = ("set_time", "set_states", "get_states", "get_derivatives", "completed_step")
+
 
 ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
 
@@ -304,7 +310,9 @@ class CompiledPlan:
         for name, kind in native.TYPED.items() if fmu.fmi3 else ():
             c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
             c.set_typed[kind] = _exported(fmu, f"fmi3Set{name}")
-        for slot in ("do_step", "set_real", "get_real"):
+        for slot in ME_CALLS if fmu.model_exchange else ("do_step",):
+            _require(fmu, slot, pc.name)
+        for slot in ("set_real", "get_real"):
             _require(fmu, slot, pc.name)
         self._check_clock(f"component {pc.name}", pc.clock, plan.n_macro * pc.ratio)
         c.num0, c.dnum, c.den = pc.clock.num0, pc.clock.dnum, pc.clock.den
@@ -355,9 +363,10 @@ class CompiledPlan:
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
         c.in_vrs = _ptr(self._array(in_vrs, np.uint32), C.c_uint32)
         n_deriv_blocks = len(blocks) - nv
-        if n_deriv_blocks and c.set_derivatives is None:
+        if n_deriv_blocks and c.set_derivatives is None and not fmu.model_exchange:
             raise FmuError(f"{pc.name}: inputs as polynomials need fmi2SetRealInputDerivatives")
-        c.n_derivatives = n_deriv_blocks * c.n_in_real  # discrete inputs are held: no derivatives
+        # discrete inputs are held: no derivatives; a Model Exchange component's polynomials are the kernel's
+        c.n_derivatives = 0 if fmu.model_exchange else n_deriv_blocks * c.n_in_real
         c.derivative_vrs = _ptr(self._array(in_vrs[: c.n_in_real] * n_deriv_blocks, np.uint32), C.c_uint32)
         orders = [d for _, d in blocks[nv:] for _ in range(c.n_in_real)]
         c.derivative_orders = _ptr(self._array(orders, np.int32), C.c_int32)
@@ -405,6 +414,42 @@ class CompiledPlan:
         c.resample_texts = int(any(o in again for o in string_output_names(plan, pc.name)))
         width = max([len(in_names)] + [len(lk.inputs) for lk in links])
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
+        if fmu.model_exchange:
+            self._model_exchange(c, pc, fmu, in_names)
+
+    def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
+        """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
+        steps per communication step, its states and their derivatives (for directional
+        derivatives), the solver's history and work space."""
+        me = pc.model_exchange or ModelExchange()
+        if c.n_in_calls and c.n_in_real:
+            raise FmuError(f"{pc.name}: a Model Exchange component with FMI 3 array inputs is not supported")
+        c.me = 1
+        c.me_solver = NUMBERS[me.solver]
+        k = me.substeps(pc.step)
+        if k is None:  # checked with the scenario (master.scenario.check)
+            raise FmuError(f"{pc.name}: internal step {me.internal_step} s does not divide {pc.step} s")
+        c.me_substeps = k
+        states = [u.variable.derivative for u in fmu.md.derivatives]
+        derivatives = [u.variable for u in fmu.md.derivatives]
+        sizes = [variable(fmu, v.name).size for v in states]
+        c.n_states = n = sum(sizes)
+        interface = fmu.md.modelExchange
+        provides = getattr(interface, "providesDirectionalDerivative", False) or getattr(
+            interface, "providesDirectionalDerivatives", False
+        )
+        if provides and n and c.get_directional_derivative and all(s == 1 for s in sizes):
+            c.me_state_vrs = self._vrs([v.valueReference for v in states])
+            c.me_derivative_vrs = self._vrs([v.valueReference for v in derivatives])
+        memory = int(self.lib.solver_memory_size(n))
+        c.me_x = _ptr(self._array(np.zeros(n), np.float64), C.c_double)
+        c.me_memory = _ptr(self._array(np.zeros(memory), np.float64), C.c_double)
+        c.me_memory_saved = _ptr(self._array(np.zeros(memory), np.float64), C.c_double)
+        work = self.lib.solver_work_new(n)
+        if not work:
+            raise MemoryError(f"{pc.name}: no memory for the solver's work space of {n} states")
+        c.me_work = work
+        weakref.finalize(self, self.lib.solver_work_free, work)
 
     def _loop(self, index: int, lp: Loop, fmus: dict[str, Fmu]) -> native.Loop:
         """An algebraic loop's tables (kernel.h mk_loop); where another process steps it, only its
@@ -722,6 +767,21 @@ class CompiledPlan:
             )
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
+        if e.code == native.EVENT:
+            return SimulationError(
+                f"{name}: the Model Exchange FMU asks for event mode {step}; the master does not handle "
+                "events of Model Exchange FMUs yet",
+                name,
+                t,
+            )
+        if call == "solver":
+            why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
+            return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
+        if call in ME_CALLS or call == "directional_derivative":
+            slot = "get_directional_derivative" if call == "directional_derivative" else call
+            failed = FMICallException(function=FMI_FUNCTIONS[slot][fmu.fmi - 1], status=e.status)
+            cause = FmuError(fmu.describe(str(failed)))
+            return SimulationError(f"{cause} {step}", name, t)
         if call in ("get_typed", "set_typed"):
             typed = next(n for n, k in native.TYPED.items() if k == e.kind)
             verb = "Get" if call == "get_typed" else "Set"

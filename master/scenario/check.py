@@ -32,6 +32,7 @@ from .settings import (
     MAX_ORDER,
     interval_problem,
     limit_problems,
+    model_exchange_problems,
     ratio_problem,
     steps_problem,
 )
@@ -58,7 +59,16 @@ def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[P
     driven = _connections(sc, infos, at)
     _stimuli(sc, infos, driven, at)
     _record(sc, infos, at)
+    _model_exchange(sc, infos, at)
     return problems.items
+
+
+def _model_exchange(sc: Scenario, infos: Infos, at: At) -> None:
+    for c in sc.components:
+        if c.model_exchange is not None and _ratio_ok(c.step_ratio):
+            step = Fraction(sc.macro_step) / c.step_ratio
+            for problem in model_exchange_problems(c.model_exchange, step, infos.get(c.name)):
+                at(f"component {c.name}", problem)
 
 
 def times(sc: Scenario) -> list[Problem]:

@@ -26,6 +26,27 @@ class Component:
     extrapolation_order: int = 0  # default order (0..3) of the polynomials on its inputs
     interpolate_inputs: bool = False  # hand polynomials to the FMU if it canInterpolateInputs
     group: str | None = None  # parallel backend: components sharing a group share a worker
+    # run as a Model Exchange FMU that the master integrates (None: Co-Simulation, unless the FMU has
+    # no Co-Simulation interface: then ModelExchange())
+    model_exchange: ModelExchange | None = None
+
+
+@dataclass(frozen=True)
+class ModelExchange:
+    """How the master integrates a Model Exchange component in each of its communication steps:
+    `solver` (an item of master.solvers.SOLVERS) with steps of `internal_step` (s; None: one step
+    per communication step), its inputs at every stage time from the extrapolation polynomials."""
+
+    solver: str = "rk4"
+    internal_step: Fraction | None = None
+
+    def substeps(self, step: Fraction) -> int | None:
+        """Internal steps in a communication step of `step` s; None where internal_step does not
+        divide it."""
+        if self.internal_step is None:
+            return 1
+        k = Fraction(step) / Fraction(self.internal_step)
+        return int(k) if k.denominator == 1 and k >= 1 else None
 
 
 # what a connection may do to the value it carries, by kind; the index is the kernel's code

@@ -191,6 +191,7 @@ def _read(
             extrapolation_order=setup.extrapolation_order[c.name],
             interpolate_inputs=setup.interpolate_inputs[c.name],
             group=setup.group.get(c.name),
+            model_exchange=setup.model_exchange.get(c.name),
         )
         for c in ctx.comps.values()
         if c.info is not None

@@ -14,12 +14,13 @@ from fractions import Fraction
 
 from lxml import etree
 
-from master.description import FLOATS, typed
+from master.description import FLOATS, Description, typed
 from master.schedule import Clock
+from master.solvers import NUMBERS
 
 from .context import Context
 from .fmuinfo import point_problem, record_problem, stimulus_problem
-from .model import Iteration, LoopSolver, Scheme, Stimulus
+from .model import Iteration, LoopSolver, ModelExchange, Scheme, Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
 from .xmlio import tag
@@ -45,6 +46,24 @@ class Settings:
     loops: LoopSolver = LoopSolver()
     iteration: Iteration | None = None
     origins: dict[str, str] = field(default_factory=dict)  # setting -> where its value came from
+    model_exchange: dict[str, ModelExchange] = field(default_factory=dict)  # components run as ME
+
+
+def model_exchange_problems(me: ModelExchange, step: Fraction, info: Description | None) -> list[str]:
+    """What is wrong with running a component as Model Exchange, `me`, with communication step
+    `step` (s) and FMU `info` (None: unreadable, reported elsewhere): the one rule of files and of
+    scenarios built in Python."""
+    found = []
+    if me.solver not in NUMBERS:
+        found.append(f'solver "{me.solver}" is not one of {", ".join(NUMBERS)}')
+    if me.internal_step is not None and (Fraction(me.internal_step) <= 0 or me.substeps(step) is None):
+        found.append(
+            f"internalStep {seconds(Fraction(me.internal_step))} does not divide the communication step "
+            f"{seconds(step)} into whole steps"
+        )
+    if info is not None and not info.integrable:
+        found.append(f"modelExchange: {info.path.name} has no Model Exchange 2.0 or 3.0 interface")
+    return found
 
 
 INTERNAL_STEP = "internal_step"  # the project's FMUs: solver step inside a communication step (s)
@@ -252,6 +271,11 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         s.origins[f"{name} communication step"] = "mm:Component" if ce is not None else "the macro step"
         order = _int(attrs.get("extrapolationOrder"))
         s.extrapolation_order[name] = default_order if order is None else order
+        if _model_exchange(ctx, ce if ce is not None else elem, attrs, s, name, comp.info):
+            s.interpolate_inputs[name] = False  # its inputs are polynomials at every stage time anyway
+            if "group" in attrs:
+                s.group[name] = attrs["group"]
+            continue
         can = comp.info is not None and comp.info.can_interpolate_inputs
         asked = _bool(attrs.get("interpolateInputs"))
         if asked and comp.info is not None and not can:
@@ -266,6 +290,26 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
             _substeps(ctx, ce, s, name, comp.info.variables.get(INTERNAL_STEP), k)
         if "group" in attrs:
             s.group[name] = attrs["group"]
+
+
+def _model_exchange(
+    ctx: Context, ce: etree._Element, attrs: dict, s: Settings, name: str, info: Description | None
+) -> bool:
+    """Whether component `name` runs as Model Exchange (modelExchange="true", or an FMU without a
+    Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
+    asked = _bool(attrs.get("modelExchange"))
+    only = info is not None and not info.co_simulation
+    if asked is False and only:
+        ctx.at(ce, f'modelExchange="false": {info.path.name} has no Co-Simulation interface')
+    if not (asked or (asked is None and only)):
+        if "solver" in attrs or "internalStep" in attrs:
+            ctx.at(ce, 'solver and internalStep are for Model Exchange components (modelExchange="true")')
+        return False
+    me = ModelExchange(attrs.get("solver", ModelExchange.solver), _time(ctx, ce, "internalStep"))
+    for problem in model_exchange_problems(me, s.macro_step / s.step_ratio[name], info):
+        ctx.at(ce, problem)
+    s.model_exchange[name] = me
+    return True
 
 
 def _substeps(ctx: Context, ce: etree._Element, s: Settings, name: str, var, k: int) -> None:

@@ -27,7 +27,7 @@ from master.description import Variable, lookup
 
 from . import fmuinfo
 from .archive import SSD_NAME
-from .model import Scenario, Scheme, Value
+from .model import ModelExchange, Scenario, Scheme, Value
 from .problems import NS_MM, NS_SSC, NS_SSD, NS_SSV
 from .systems import component_element
 from .values import BadValue, from_string
@@ -86,6 +86,19 @@ def decimal(t: Fraction) -> str:
     return format(d.normalize(), "f") if Fraction(d) == t else f"{t.numerator}/{t.denominator}"
 
 
+def _model_exchange(elem: etree._Element, me: ModelExchange | None) -> None:
+    """A component's Model Exchange settings (none: its attributes go)."""
+    for attr in ("solver", "internalStep"):
+        elem.attrib.pop(attr, None)
+    if me is None:
+        elem.attrib.pop("modelExchange", None)
+        return
+    elem.set("modelExchange", "true")
+    elem.set("solver", me.solver)
+    if me.internal_step is not None:
+        elem.set("internalStep", decimal(me.internal_step))
+
+
 def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> None:
     system = root.find(tag(NS_SSD, "System"))
     settings = _settings(system)
@@ -106,6 +119,7 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
         elem.set("extrapolationOrder", str(comp.extrapolation_order))
         if comp.interpolate_inputs or "interpolateInputs" in elem.attrib:
             elem.set("interpolateInputs", "true" if comp.interpolate_inputs else "false")
+        _model_exchange(elem, comp.model_exchange)
     per_link = {(c.end_component, c.end_connector): c.extrapolation_order for c in new.connections}
     for elem in settings.findall(tag(NS_MM, "Connection")):
         order = per_link.get((elem.get("endElement"), elem.get("endConnector")))
