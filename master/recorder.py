@@ -361,6 +361,9 @@ class RunSummary:
     coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
     # per algebraic loop (its cycle): its counters, master.runtime.tables.loop_stats
     loops: dict[str, dict[str, float]] = field(default_factory=dict)
+    # iterated macro steps (master.runtime.tables.iteration_counts): "sweeps" in all, "max" in one
+    # macro step, "macro_steps" iterated; None: explicit coupling
+    iterations: dict[str, int] | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -385,6 +388,13 @@ class RunSummary:
         for name, n in self.steps.items():
             lines.append(f"  {name}: {n} steps, {self.fmu_time.get(name, 0.0):.3f} s inside the FMU")
         lines.append(f"  master overhead: {self.overhead_per_macro_step * 1e6:.1f} us per macro step")
+        if self.iterations is not None:
+            it, mean = self.iterations, self.iterations["sweeps"] / max(self.iterations["macro_steps"], 1)
+            lines.append(
+                f"  iterated coupling: {it['sweeps']} sweep{'s' if it['sweeps'] != 1 else ''} in "
+                f"{it['macro_steps']} macro step{'s' if it['macro_steps'] != 1 else ''} "
+                f"(mean {mean:.2f}, at most {it['max']} in one)"
+            )
         if self.overruns is not None:
             late_ms = 1e3 * (self.worst_lateness or 0.0)
             lines.append(

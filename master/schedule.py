@@ -23,7 +23,7 @@ from master.scenario.fmuinfo import (
     recorded_as,
 )
 from master.scenario.loops import cycle_in, strongly_connected
-from master.scenario.model import ModelExchange, Scenario, Scheme, Stimulus, Transformation
+from master.scenario.model import Iteration, ModelExchange, Scenario, Scheme, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
 
@@ -180,6 +180,9 @@ class Plan:
     # how the results hold each `record` column (fmuinfo.recorded_as); empty: every one a float64
     record_types: tuple[str, ...] = ()
     loops: tuple[Loop, ...] = ()  # algebraic loops, solved at communication points (Scenario.loops)
+    # iterated macro steps (strong coupling, Scenario.iteration): every macro step repeated from saved
+    # FMU states, relaxed windows as in start-up, until its coupled samples settle; None: explicit
+    iteration: Iteration | None = None
 
     @property
     def column_types(self) -> dict[str, str]:
@@ -242,6 +245,12 @@ class Plan:
             lines.append(f"  stimulus {s.kind} -> {s.component}.{s.variable}")
         for lp in self.loops:
             lines.append(f"  algebraic loop {lp.cycle}: {', '.join(lp.members)}")
+        if self.iteration is not None:
+            it = self.iteration
+            lines.append(
+                f"  iterated: every macro step repeated from saved FMU states until no coupled sample "
+                f"changes by more than {it.tolerance:g} (1 + |value|), at most {it.max_iterations} sweeps"
+            )
         lines.extend(f"  note: {n}" for n in self.notes)
         return "\n".join(lines)
 
@@ -305,6 +314,7 @@ def build_plan(
         startup_steps=startup_steps if startup_sweeps else 0,
         startup_sweeps=startup_sweeps,
         exclusive=exclusive,
+        iteration=sc.iteration,
         record_errors=tuple(
             (lk.source, o, lk.consumer, i)
             for lk in links
@@ -411,10 +421,11 @@ def _startup(
         notes.append("start-up: not every FMU can save its state, so start-up steps are not repeated")
         return startup_steps, 0
     sweeps = max(lk.order for lk in links)
-    notes.append(
-        f"start-up: macro steps 0..{startup_steps - 1} are repeated {sweeps} time(s) from "
-        "saved FMU states with interpolation over the step (whole system integrated together)"
-    )
+    if sc.iteration is None:  # iterated, every macro step is repeated until it settles
+        notes.append(
+            f"start-up: macro steps 0..{startup_steps - 1} are repeated {sweeps} time(s) from "
+            "saved FMU states with interpolation over the step (whole system integrated together)"
+        )
     return startup_steps, sweeps
 
 

@@ -13,8 +13,9 @@ The search, in the bench's configuration space (master.evidence.bench):
    ROUNDS rounds, the three cheapest dual-rate families that meet the tolerance (or, failing
    those, the nearest to it) not yet expanded have every neighbour one setting away tried
    (`variants`: coupling, control first with the mechanics interpolating, the mechanics' order
-   and solver steps, control solver, order, ratio, mechanics solver). A scene without a bench
-   profile varies its extrapolation order and coupling.
+   and solver steps, control solver, order, ratio, mechanics solver, iterated macro steps). A
+   scene without a bench profile varies its extrapolation order and coupling, explicit and
+   iterated (Gauss-Seidel sweeps: they settle sooner than Jacobi's, at the same fixed point).
 2. per family, the largest macro step of a ladder of round steps (1, 1.25, 2, 2.5, 4, 5 x 10^k dividing
    the record interval and the stop time) that meets the tolerance: galloping from the best step
    found so far, then bisection (error grows with the step). A step the linear stability analysis
@@ -22,9 +23,11 @@ The search, in the bench's configuration space (master.evidence.bench):
    times the best's.
 3. the ranking: a cost model (`CostModel`): the work a configuration does per simulated second,
    counted from its schedule (macro steps, and each component's FMU calls by kind: solver, solver
-   steps per call, polynomial inputs), times the time each kind costs, calibrated once after the
-   search from the pilot runs (the median time per call of each kind: a load spike in a minority
-   of the runs moves nothing). Timings never reorder it, so load cannot flip the choice.
+   steps per call, polynomial inputs; iterated: times 1 + its pilot run's mean sweeps per macro
+   step, before the run the linear model's `sweeps_needed`), times the time each kind costs,
+   calibrated once after the search from the pilot runs (the median time per call of each kind:
+   a load spike in a minority of the runs moves nothing). Timings never reorder it, so load
+   cannot flip the choice.
 4. the two cheapest by the model are timed in turn (serial backend) until one is faster outside
    the noise (`decide`); where they stay within it, they are equal and the cheaper by the model
    wins. With a real-time budget F the winner must also step at most F s of wall time per
@@ -44,7 +47,7 @@ from master.evidence import bench
 from master.evidence.bench import Config, Profile
 from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
-from master.scenario.model import Scenario
+from master.scenario.model import Scenario, Scheme
 from master.scenario.names import split
 from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
@@ -82,6 +85,7 @@ class Trial:
     error: float  # worst scaled max error (inf: did not finish)
     status: str  # "finished", or why it is not a candidate
     rho: float = math.nan  # spectral radius of the linearised macro-step map (nan: no analysis)
+    sweeps: float = 0.0  # iterated: the run's mean sweeps per macro step (0: explicit, or not run)
 
 
 @dataclass
@@ -140,8 +144,13 @@ def families(p: Profile) -> list[tuple[str, Config]]:
     """The first round of families (named), each a configuration whose macro step the search sets."""
     b = p.base
     if p.generic:
-        return [(f"order {k}, {c}", dataclasses.replace(b, order=k, coupling=c))
-                for c in ("jacobi", "gauss-seidel") for k in range(4)]  # fmt: skip
+        plain = [(f"order {k}, {c}", dataclasses.replace(b, order=k, coupling=c, iterated=False))
+                 for c in Scheme for k in range(4)]  # fmt: skip
+        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
+        iterated = [
+            (f"order {k}, gauss-seidel, iterated", dataclasses.replace(swept, order=k)) for k in range(4)
+        ]
+        return plain + iterated
     out = [(f"single-rate {SOLVER_NAMES[p.baseline.mech_solver]}", p.baseline)]
     for r in p.ratios:
         for k in range(4):
@@ -157,7 +166,7 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
     the mechanics solver."""
     out = []
     if not c.control_first:
-        flip = "gauss-seidel" if (c.coupling or "jacobi") == "jacobi" else "jacobi"
+        flip = Scheme.GAUSS_SEIDEL if (c.coupling or Scheme.JACOBI) == Scheme.JACOBI else Scheme.JACOBI
         out.append(dataclasses.replace(c, coupling=flip))
         out += [dataclasses.replace(c, control_first=True, mech_order=2, mech_substeps=m) for m in (1, 2, 4)]
     else:
@@ -173,6 +182,7 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
     above = [r for r in p.ratios if r > c.ratio + 1][:1]
     out += [dataclasses.replace(c, ratio=r) for r in (*below, c.ratio - 1, c.ratio + 1, *above) if r >= 1]
     out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
+    out.append(dataclasses.replace(c, iterated=not c.iterated))
     return [(_name(v), v) for v in out]
 
 
@@ -181,6 +191,7 @@ def _name(c: Config) -> str:
         return f"single-rate {SOLVER_NAMES[c.mech_solver]}"
     how = (f", control first, mechanics order {c.mech_order} x{c.mech_substeps}" if c.control_first
            else f", {c.coupling}" if c.coupling else "")  # fmt: skip
+    how += ", iterated" if c.iterated else ""
     return f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}{how}"
 
 
@@ -195,14 +206,15 @@ def call_kind(scene: Scenario, comp) -> tuple:
     return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs
 
 
-def work(scene: Scenario) -> dict[tuple, float]:
+def work(scene: Scenario, sweeps: float = 0.0) -> dict[tuple, float]:
     """The counted work of a scene per simulated second: its macro steps (MACRO) and each
-    component's communication steps by `call_kind`."""
+    component's communication steps by `call_kind`, each macro step stepped 1 + `sweeps` times
+    (iterated: the mean sweeps per macro step)."""
     per_second = 1 / scene.macro_step
     out = {MACRO: float(per_second)}
     for comp in scene.components:
         kind = call_kind(scene, comp)
-        out[kind] = out.get(kind, 0.0) + float(comp.step_ratio * per_second)
+        out[kind] = out.get(kind, 0.0) + float(comp.step_ratio * per_second) * (1.0 + sweeps)
     return out
 
 
@@ -229,9 +241,10 @@ class CostModel:
         return {kind: statistics.median_low(times) for kind, times in self.samples.items()}
 
     @staticmethod
-    def cost(scene: Scenario, times: dict[tuple, float]) -> float:
-        """Modelled wall s per simulated s (a kind not calibrated counts 0: never pruned on a guess)."""
-        return sum(n * times.get(kind, 0.0) for kind, n in work(scene).items())
+    def cost(scene: Scenario, times: dict[tuple, float], sweeps: float = 0.0) -> float:
+        """Modelled wall s per simulated s (a kind not calibrated counts 0: never pruned on a guess);
+        sweeps: iterated, the mean sweeps per macro step."""
+        return sum(n * times.get(kind, 0.0) for kind, n in work(scene, sweeps).items())
 
 
 class Pilot:
@@ -277,11 +290,27 @@ class Pilot:
         rep = compare(as_trajectory(res.data), self.ref, list(self.p.variables) if self.p.variables else None)
         ok = rep.worst_max <= self.tolerance
         status = "finished" if ok else f"error {rep.worst_max:.3g} ({rep.worst_max_variable})"
-        return Trial(c, ok, rep.worst_max, status, rho)
+        it = res.summary.iterations
+        sweeps = it["sweeps"] / it["macro_steps"] if it and it["macro_steps"] else 0.0
+        return Trial(c, ok, rep.worst_max, status, rho, sweeps)
+
+    def sweeps(self, c: Config) -> float:
+        """Mean sweeps per macro step of a configuration: its run's, else the linear model's
+        estimate, else the most any iterated run needed so far (at least one)."""
+        if not c.iterated:
+            return 0.0
+        if c in self.trials and self.trials[c].sweeps:
+            return self.trials[c].sweeps
+        if self.lin is not None:
+            from master.evidence.linear import sweeps_needed
+
+            tolerance = bench.iteration(self.sc, c).tolerance
+            return sweeps_needed(bench.linear_scheme(self.lin, self.p, c), float(c.macro_step), tolerance)
+        return max([t.sweeps for t in self.trials.values()] + [1.0])
 
     def cost(self, c: Config) -> float:
         """Modelled s per simulated s with the runs so far (the search's pruning only)."""
-        return CostModel.cost(self.scene(c), self.model.calibrate())
+        return CostModel.cost(self.scene(c), self.model.calibrate(), self.sweeps(c))
 
 
 def _pair(name: str, sc: Scenario) -> tuple[str, str]:
@@ -450,7 +479,7 @@ def _tune(
             search(variants(t.config, p))
     costs = pilot.model.calibrate()  # once: every candidate is ranked by these times
     for ch in choices:
-        ch.cost = CostModel.cost(pilot.scene(ch.trial.config), costs)
+        ch.cost = CostModel.cost(pilot.scene(ch.trial.config), costs, ch.trial.sweeps)
     ranked = sorted(choices, key=lambda ch: (ch.cost, ch.family))
     horizon = pilot.stop - scenario.start_time
     result = TuneResult(scenario, p, tolerance, float(horizon), float(pilot.grid), pilot.reference.what,

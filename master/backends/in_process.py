@@ -14,7 +14,15 @@ from master.backends.component import open_fmu, output_names
 from master.backends.driver import signals_deferred
 from master.fmu import Fmu
 from master.recorder import Recorder
-from master.runtime.tables import CompiledPlan, Memory, coupling_errors, layout, loop_stats, pacing_stats
+from master.runtime.tables import (
+    CompiledPlan,
+    Memory,
+    coupling_errors,
+    iteration_counts,
+    layout,
+    loop_stats,
+    pacing_stats,
+)
 from master.schedule import Plan
 
 
@@ -80,6 +88,10 @@ class InProcessBackend:
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""
         return coupling_errors(self.plan, self.compiled.memory) if self.compiled is not None else {}
+
+    def iterations(self) -> dict[str, int] | None:
+        """Iterated macro steps: the sweeps (`iteration_counts`), None when the plan does not iterate."""
+        return iteration_counts(self.plan, self.compiled.memory) if self.compiled is not None else None
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""

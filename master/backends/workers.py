@@ -42,6 +42,7 @@ from master.runtime.tables import (
     Memory,
     counter,
     coupling_errors,
+    iteration_counts,
     layout,
     loop_stats,
     pacing_stats,
@@ -428,6 +429,10 @@ class WorkerBackend:
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""
         return coupling_errors(self.plan, self.memory) if self.memory is not None else {}
+
+    def iterations(self) -> dict[str, int] | None:
+        """Iterated macro steps: the sweeps (`iteration_counts`), None when the plan does not iterate."""
+        return iteration_counts(self.plan, self.memory) if self.memory is not None else None
 
     def stats(self) -> tuple[dict[str, int], dict[str, float]]:
         """(communication steps, wall time inside FMI calls in s) per component."""

@@ -37,7 +37,7 @@ from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
-from master.scenario.model import Scenario, Scheme
+from master.scenario.model import Iteration, Scenario, Scheme
 from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
 GENERIC_FAMILIES = ("scene", "macro-step", "order", "coupling", "backend")  # sweeps of generic_profile
@@ -62,6 +62,9 @@ class Config:
     control_first: bool = False
     mech_order: int = 0
     mech_substeps: int = 1
+    # iterated macro steps (strong coupling): each repeated from saved states until the coupled
+    # signals settle (the scene's mm:Iteration, else the defaults of Iteration)
+    iterated: bool = False
 
     def __post_init__(self) -> None:
         if self.family == "single-rate":
@@ -71,6 +74,7 @@ class Config:
     def label(self) -> str:
         h = float(self.macro_step)
         how = f"{self.backend}" + (f", {self.coupling}" if self.coupling else "")
+        how += ", iterated" if self.iterated else ""
         if self.single_rate:
             return f"single-rate {SOLVER_NAMES[self.mech_solver]} h={h:g}, {how}"
         if self.family in GENERIC_FAMILIES:
@@ -160,7 +164,7 @@ def generic_profile(sc: Scenario) -> Profile:
     (a multiple of 2 H, so that every swept step hits it) against the reference solution."""
     H = sc.macro_step
     order = max((c.extrapolation_order for c in sc.components), default=0)
-    base = Config("scene", H, order=order)
+    base = Config("scene", H, order=order, iterated=sc.iteration is not None)
     return Profile(
         mechanics=tuple(c.name for c in sc.components),
         control=(),
@@ -247,6 +251,7 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
             order=(sc.order or tuple(x.name for x in sc.components))
             if coupling == Scheme.GAUSS_SEIDEL
             else (),
+            iteration=iteration(sc, c),
             components=comps,
             connections=conns,
             macro_step=c.macro_step,
@@ -279,12 +284,18 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         sc,
         coupling=coupling,
         order=order,
+        iteration=iteration(sc, c),
         components=tuple(comps),
         connections=conns,
         macro_step=c.macro_step,
         record_interval=lcm(p.record_interval, c.macro_step),
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
     )
+
+
+def iteration(sc: Scenario, c: Config) -> Iteration | None:
+    """The iterated macro steps of a configuration: the scene's settings where it has them."""
+    return (sc.iteration or Iteration()) if c.iterated else None
 
 
 def _whole(sc: Scenario, step: Fraction) -> Fraction:
@@ -336,7 +347,9 @@ def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
     first = (lin.first or tuple(x.name for x in lin.components)) if coupling == Scheme.GAUSS_SEIDEL else ()
     if c.control_first:
         first = (*p.control, *p.mechanics)
-    return dataclasses.replace(lin, components=tuple(comps), order=c.order, first=first)
+    return dataclasses.replace(
+        lin, components=tuple(comps), order=c.order, first=first, iterate="converged" if c.iterated else 0
+    )
 
 
 @dataclass

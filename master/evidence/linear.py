@@ -14,6 +14,15 @@ resampling: no output lags its time label).
 The scheme is linear in its extended state z = (states, solver histories, coupling history),
 so one macro step is z_(n+1) = G(H) z_n; the co-simulation is stable iff rho(G) < 1.
 G is built column by column by stepping unit vectors through the scheme.
+
+Iterated macro steps (strong coupling, `LinearScheme.iterate`): after the explicit pass the macro
+step is repeated from the saved states with relaxed windows (the sources' samples up to t_(n+1)
+of the previous sweep, interpolated; under Gauss-Seidel those of sources that go first from the
+current sweep), as the runtime's start-up sweeps do. A fixed number of sweeps keeps the map
+linear. "converged" is the limit the runtime approaches as its tolerance goes to 0: the fixed
+point of the sweep, y* = M y* + N z, solved exactly, which exists and is what the runtime reaches
+only where the sweep contracts (rho(M) < 1, `sweep_radius`); beyond, the runtime's sweeps diverge
+and the step counts as unstable.
 """
 
 from __future__ import annotations
@@ -55,6 +64,9 @@ class LinearScheme:
     order: int = 0
     inputs: str = "hold"  # "hold" or "polynomial"
     first: tuple[str, ...] = ()  # Gauss-Seidel stepping order (empty: Jacobi)
+    # iterated macro steps: 0 explicit; n > 0 that many sweeps after the explicit pass; "converged"
+    # the fixed point of the sweeps (see the module docstring)
+    iterate: int | str = 0
 
     def order_of(self, consumer: LinearComponent) -> int:
         """Extrapolation order of the consumer's inputs."""
@@ -134,7 +146,9 @@ class _State:
 def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int, big_h: float,
              relaxed: bool = False) -> None:  # fmt: skip
     """Macro step n of every component: states in place; samples read from `read`, own new
-    samples written into `write` (dicts: component -> {sample index: outputs})."""
+    samples written into `write` (dicts: component -> {sample index: outputs}). An iterated
+    sweep (relaxed, scheme.iterate) reads a source that goes first from `write`: its samples of
+    this sweep (Gauss-Seidel waveform iteration); a start-up sweep reads every source from `read`."""
     comps = {c.name: c for c in scheme.components}
     for c in scheme.stepping():
         st = states[c.name]
@@ -150,10 +164,11 @@ def _advance(scheme: LinearScheme, states: dict, read: dict, write: dict, n: int
                     continue  # undriven: the linearisation is about its operating value
                 src = comps[d[0]]
                 ks, col = src.step_ratio, src.outputs.index(d[1])
-                ahead = relaxed or scheme.source_first(src.name, name)
-                j_end, p = _window(k, ks, kc, n, j, ahead)
+                first = scheme.source_first(src.name, name)
+                j_end, p = _window(k, ks, kc, n, j, relaxed or first)
                 w = extrapolation_weights(p, (at * ks - j_end * kc) / kc)
-                vals[q] = sum(w[i] * read[src.name][j_end - i][col] for i in range(p + 1))
+                samples = write if relaxed and first and scheme.iterate else read
+                vals[q] = sum(w[i] * samples[src.name][j_end - i][col] for i in range(p + 1))
             return vals
 
         h = big_h / kc / c.substeps
@@ -243,30 +258,109 @@ def _solver_step(comp: LinearComponent, h: float, x, f1, f2, delta, u_of_t, coun
     f1[:] = fn
 
 
-def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
-    """One steady Jacobi macro step of size big_h (s) applied to the extended state z (a vector,
-    or a matrix whose columns are stepped side by side)."""
-    lay = _Layout(scheme)
-    z = np.asarray(z, dtype=float)
-    cols = z.shape[1:]
-    k = scheme.max_order()
-    n = k + 1  # any macro step past the start-up
+def _unpack(scheme: LinearScheme, lay: _Layout, z: np.ndarray, n: int) -> tuple[dict, dict]:
+    """(solver states, sample history) of every component from the extended state z at macro step n."""
+    k, cols = scheme.max_order(), z.shape[1:]
     states, hist = {}, {}
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
         states[c.name] = _State(z[sx].copy(), z[s1].copy(), z[s2].copy(), z[sd].copy(), 2)
         ys = z[lay.samples[c.name]].reshape(k + 1, len(c.outputs), *cols)
         hist[c.name] = {n * c.step_ratio - i: ys[i] for i in range(k + 1)}
-    _advance(scheme, states, hist, hist, n, big_h)
-    _resample(scheme, states, hist, n)
-    out = np.empty_like(z)
+    return states, hist
+
+
+def _pack(
+    scheme: LinearScheme, lay: _Layout, states: dict, hist: dict, n: int, like: np.ndarray
+) -> np.ndarray:
+    """The extended state after macro step n (the inverse of `_unpack` at n + 1)."""
+    out = np.empty_like(like)
     for c in scheme.components:
         sx, s1, s2, sd = lay.slices[c.name]
         st = states[c.name]
         out[sx], out[s1], out[s2], out[sd] = st.x, st.f1, st.f2, st.delta
         last = (n + 1) * c.step_ratio
-        out[lay.samples[c.name]] = np.concatenate([hist[c.name][last - i] for i in range(k + 1)])
+        out[lay.samples[c.name]] = np.concatenate(
+            [hist[c.name][last - i] for i in range(scheme.max_order() + 1)]
+        )
     return out
+
+
+def _own_samples(scheme: LinearScheme, hist: dict, n: int) -> np.ndarray:
+    """The samples every component produced in macro step n (n k + 1 .. (n + 1) k), stacked: what
+    a sweep changes and the next one reads."""
+    return np.concatenate(
+        [
+            hist[c.name][j]
+            for c in scheme.components
+            for j in range(n * c.step_ratio + 1, (n + 1) * c.step_ratio + 1)
+        ]
+    )
+
+
+def _sweep(scheme: LinearScheme, lay: _Layout, z: np.ndarray, y: np.ndarray, n: int, big_h: float):
+    """One iterated sweep of macro step n from the extended state z, the previous sweep's own
+    samples being y (`_own_samples`): (the extended state after it, resampled; its own samples)."""
+    states, hist = _unpack(scheme, lay, z, n)
+    previous = {name: dict(h) for name, h in hist.items()}
+    i = 0
+    for c in scheme.components:
+        for j in range(n * c.step_ratio + 1, (n + 1) * c.step_ratio + 1):
+            previous[c.name][j] = y[i : i + len(c.outputs)]
+            i += len(c.outputs)
+    _advance(scheme, states, previous, hist, n, big_h, relaxed=True)
+    own = _own_samples(scheme, hist, n)
+    _resample(scheme, states, hist, n)
+    return _pack(scheme, lay, states, hist, n, z), own
+
+
+def _sweep_maps(scheme: LinearScheme, big_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(M, N) of the sweep's own samples y' = M y + N z (`_sweep`), from unit vectors."""
+    lay = _Layout(scheme)
+    n = scheme.max_order() + 1
+    ny = sum(len(c.outputs) * c.step_ratio for c in scheme.components)
+    m = _sweep(scheme, lay, np.zeros((lay.size, ny)), np.eye(ny), n, big_h)[1]
+    nz = _sweep(scheme, lay, np.eye(lay.size), np.zeros((ny, lay.size)), n, big_h)[1]
+    return m, nz
+
+
+def sweep_radius(scheme: LinearScheme, big_h: float) -> float:
+    """rho(M): how much one iterated sweep shrinks the difference between sweeps (< 1: the sweeps
+    converge, by about this factor each)."""
+    return float(np.max(np.abs(np.linalg.eigvals(_sweep_maps(scheme, big_h)[0]))))
+
+
+def sweeps_needed(scheme: LinearScheme, big_h: float, tolerance: float) -> float:
+    """Sweeps per macro step the runtime needs to settle to `tolerance` (relative), by the sweep's
+    contraction: the sweeps that shrink a difference of order 1 below the tolerance, then the one
+    that confirms it; inf where the sweeps do not converge."""
+    rho = sweep_radius(scheme, big_h)
+    if rho >= 1.0:
+        return float("inf")
+    if rho < tolerance:
+        return 2.0
+    return float(np.ceil(np.log(tolerance) / np.log(rho))) + 1.0
+
+
+def macro_step(scheme: LinearScheme, z: np.ndarray, big_h: float) -> np.ndarray:
+    """One steady macro step of size big_h (s) applied to the extended state z (a vector, or a
+    matrix whose columns are stepped side by side), iterated as scheme.iterate says."""
+    lay = _Layout(scheme)
+    z = np.asarray(z, dtype=float)
+    n = scheme.max_order() + 1  # any macro step past the start-up
+    if scheme.iterate == "converged":  # the fixed point of the sweep (module docstring)
+        m, nz = _sweep_maps(scheme, big_h)
+        y = np.linalg.solve(np.eye(len(m)) - m, nz @ z)
+        return _sweep(scheme, lay, z, y, n, big_h)[0]
+    states, hist = _unpack(scheme, lay, z, n)
+    _advance(scheme, states, hist, hist, n, big_h)
+    if not scheme.iterate:
+        _resample(scheme, states, hist, n)
+        return _pack(scheme, lay, states, hist, n, z)
+    y = _own_samples(scheme, hist, n)
+    for _ in range(int(scheme.iterate)):
+        z_next, y = _sweep(scheme, lay, z, y, n, big_h)
+    return z_next
 
 
 def step_matrix(scheme: LinearScheme, big_h: float) -> np.ndarray:
@@ -324,8 +418,12 @@ def _growth(scheme: LinearScheme) -> float:
 
 
 def _margin(scheme: LinearScheme, big_h: float, growth: float) -> float:
-    """How far the scheme is from stable at H: rho(G) / exp(max(a, 0) H) - 1 - RHO_TOL (> 0: it grows)."""
-    return spectral_radius(scheme, big_h) / np.exp(max(growth, 0.0) * big_h) - 1.0 - RHO_TOL
+    """How far the scheme is from stable at H: rho(G) / exp(max(a, 0) H) - 1 - RHO_TOL (> 0: it
+    grows); iterated until converged, also rho(M) - 1 (> 0: the sweeps diverge)."""
+    margin = spectral_radius(scheme, big_h) / np.exp(max(growth, 0.0) * big_h) - 1.0 - RHO_TOL
+    if scheme.iterate == "converged":
+        margin = max(margin, sweep_radius(scheme, big_h) - 1.0)
+    return margin
 
 
 def largest_stable_step(
@@ -418,9 +516,13 @@ def startup(scheme: LinearScheme) -> tuple[int, int]:
     return (steps, sweeps) if steps else (0, 0)
 
 
-def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int) -> np.ndarray:
+def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_steps: int,
+             tolerance: float = 1e-12, max_sweeps: int = 1000) -> np.ndarray:  # fmt: skip
     """States of every component at the macro points 0 .. n_steps, start-up included; shape
-    (n_steps + 1, total states) in component order."""
+    (n_steps + 1, total states) in component order. Iterated as the runtime does it: every macro
+    step (with `iterate`; else the start-up steps, a fixed number of times) repeated from the
+    saved states; "converged": until no sample of the step changes by more than tolerance (1 +
+    |sample|) between sweeps, at most max_sweeps times (then ValueError)."""
     states = {}
     for c in scheme.components:
         zeros = (np.zeros(c.a.shape[0]) for _ in range(3))
@@ -432,10 +534,27 @@ def simulate(scheme: LinearScheme, x0: dict[str, np.ndarray], big_h: float, n_st
     for n in range(n_steps):
         saved = {name: st.copy() for name, st in states.items()}
         _advance(scheme, states, hist, hist, n, big_h)
-        for _ in range(sweeps if n < steps else 0):
+        limit = max_sweeps if scheme.iterate == "converged" else int(scheme.iterate)
+        if not scheme.iterate:
+            limit = sweeps if n < steps else 0
+        for s in range(limit):
             previous = {name: dict(h) for name, h in hist.items()}
             states = {name: st.copy() for name, st in saved.items()}
             _advance(scheme, states, previous, hist, n, big_h, relaxed=True)
+            if scheme.iterate == "converged" and _settled(scheme, previous, hist, n, tolerance):
+                break
+            if s == max_sweeps - 1:
+                raise ValueError(f"macro step {n}: the sweeps did not converge in {max_sweeps}")
         _resample(scheme, states, hist, n)
         rows.append(np.concatenate([states[c.name].x for c in scheme.components]))
     return np.array(rows)
+
+
+def _settled(scheme: LinearScheme, previous: dict, hist: dict, n: int, tolerance: float) -> bool:
+    """Whether no sample of macro step n changed by more than tolerance (1 + |sample|) (the runtime's
+    convergence test)."""
+    return all(
+        np.all(np.abs(hist[c.name][j] - previous[c.name][j]) <= tolerance * (1.0 + np.abs(hist[c.name][j])))
+        for c in scheme.components
+        for j in range(n * c.step_ratio + 1, (n + 1) * c.step_ratio + 1)
+    )

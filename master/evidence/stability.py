@@ -20,7 +20,8 @@ from scipy.integrate import solve_ivp
 from master.evidence.linear import LinearComponent, LinearScheme
 from master.evidence.reference import _DOUBLE_P, _Scene, break_points
 from master.recorder import signal_columns
-from master.scenario.model import Scenario
+from master.scenario.model import Scenario, Scheme
+from master.schedule import stepping_order
 from master.solvers import NUMBERS
 
 
@@ -93,8 +94,8 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
     ratio, its inputs held or as polynomials (an FMU that interpolates its inputs: one doStep per
     macro step), its solver (parameter "solver") and its solver steps per communication step
     (parameter "internal_step"; 0: one); a Model Exchange component its `solver` and `internalStep`,
-    its inputs as polynomials. order: the extrapolation order (default: the largest
-    of the scene's components).
+    its inputs as polynomials; iterated macro steps as their converged fixed point. order: the
+    extrapolation order (default: the largest of the scene's components).
     """
     from master.api import plan as make_plan
 
@@ -130,10 +131,9 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
-        first = tuple(scenario.order) if scenario.coupling == "gauss-seidel" else ()
-        if scenario.coupling == "gauss-seidel" and not first:
-            first = tuple(c.name for c in scenario.components)
-        return LinearScheme(tuple(comps), conns, order=k, first=first)
+        first = tuple(stepping_order(scenario)) if scenario.coupling == Scheme.GAUSS_SEIDEL else ()
+        iterate = "converged" if scenario.iteration is not None else 0  # the runtime's iterated steps
+        return LinearScheme(tuple(comps), conns, order=k, first=first, iterate=iterate)
     finally:
         scene.close()
 

@@ -190,6 +190,7 @@ static void wake_all(mk_shared *s, int32_t n_components, int32_t n_workers) {
         futex(&s->published[i], FUTEX_WAKE, INT_MAX, NULL);
         futex(&s->stepped[i], FUTEX_WAKE, INT_MAX, NULL);
         futex(&s->consumed[i], FUTEX_WAKE, INT_MAX, NULL);
+        if (s->swept) futex(&s->swept[i], FUTEX_WAKE, INT_MAX, NULL);
     }
     for (int32_t w = 0; w < n_workers; w++) futex(&s->rows_written[w], FUTEX_WAKE, INT_MAX, NULL);
     futex(s->barrier, FUTEX_WAKE, INT_MAX, NULL);
@@ -233,6 +234,9 @@ static void request_stop(mk_kernel *k, int32_t ci, int64_t j, int64_t n_stop) {
     sh->stopper[2 * ci + 1] = j;
     lower_stop(sh, n_stop, k->n_components, sh->n_workers);
 }
+
+/* Whether macro step n is repeated from saved FMU states: a start-up step, or every one when iterated. */
+static bool repeated(const mk_kernel *k, int64_t n) { return n < k->startup_steps || k->iterate; }
 
 /* Whether macro step n records a row: every record_every macro steps, and the last. Every process
  * records the same macro steps, so the rows of the ring line up. */
@@ -710,7 +714,8 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
     for (int32_t l = 0; l < c->n_links; l++) {
         const mk_link *lk = &c->links[l];
         const mk_component *src = &k->components[lk->source];
-        const double *hist = relaxed ? src->hist_previous : src->hist;
+        const bool previous = relaxed && !(lk->ahead && k->iterate); /* Gauss-Seidel sweeps: current */
+        const double *hist = previous ? src->hist_previous : src->hist;
         const int64_t cap = src->cap, n_out = src->n_out, base = n * lk->k_source;
         if (lk->predict && !relaxed && n >= lk->n_plain) estimate(lk, hist, cap, n_out, n);
         int32_t t = relaxed ? lk->n_plain + 1 + (n < lk->n_relaxed ? (int32_t)n : lk->n_relaxed)
@@ -743,7 +748,7 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
     for (int32_t l = 0; l < c->n_string_links; l++) {
         const mk_link *lk = &c->string_links[l];
         const mk_component *src = &k->components[lk->source];
-        char *ring = relaxed ? src->strings_previous : src->strings;
+        char *ring = relaxed && !(lk->ahead && k->iterate) ? src->strings_previous : src->strings;
         int32_t t = relaxed ? lk->n_plain + 1 + (n < lk->n_relaxed ? (int32_t)n : lk->n_relaxed)
                             : (n < lk->n_plain ? (int32_t)n : lk->n_plain);
         const int64_t *off = lk->offsets + (size_t)t * kc; /* one term */
@@ -966,7 +971,7 @@ static void me_history(mk_component *c, bool save) {
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
     const int32_t kc = c->ratio, nb = c->n_blocks, n_in = c->n_in;
-    const bool final = n >= k->startup_steps;
+    const bool final = !repeated(k, n);
     int64_t j = n * kc;
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
@@ -1000,7 +1005,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         if (c->n_out && c->reads[m] && check_sample(k, ci, row, j + 1)) return k->error.code;
         if (terminate) { /* completed, and the end: at a macro step's end with it, else at its start
                           * (also in start-up, whose sweeps would step the FMU again) */
-            bool with_it = m == kc - 1 && n >= k->startup_steps;
+            bool with_it = m == kc - 1 && !repeated(k, n);
             request_stop(k, ci, j, with_it ? n + 1 : n);
             return with_it ? MK_DONE : MK_STOPPED;
         }
@@ -1067,6 +1072,15 @@ static int32_t wait_final(mk_kernel *k, int32_t ci, int64_t n, const mk_loop *lo
         for (int32_t m = 0; loop && m < loop->n_members; m++) member |= loop->members[m] == lk->source;
         if (member) continue;
         if (wait_for(k, lk->final ? &sh->published[lk->source] : &sh->stepped[lk->source], n + 1)) return aborted(k);
+    }
+    return MK_DONE;
+}
+
+/* An iterated sweep: the sources that go first have completed this sweep (fill_inputs reads them). */
+static int32_t wait_swept(mk_kernel *k, const mk_component *c) {
+    for (int32_t l = 0; l < c->n_links + c->n_string_links; l++) {
+        const mk_link *lk = l < c->n_links ? &c->links[l] : &c->string_links[l - c->n_links];
+        if (lk->ahead && wait_for(k, &k->shared->swept[lk->source], k->sweeps)) return aborted(k);
     }
     return MK_DONE;
 }
@@ -1374,6 +1388,7 @@ static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
     mk_component *c = &k->components[ci];
     mk_shared *sh = relaxed ? NULL : k->shared;
     if (sh && wait_inputs(k, c, n)) return MK_ABORTED;
+    if (relaxed && k->iterate && k->shared && wait_swept(k, c)) return MK_ABORTED;
     fill_inputs(k, c, n, relaxed);
     if (sh) {
         publish(&sh->consumed[ci], n + 1);
@@ -1384,14 +1399,69 @@ static int32_t macro_step(mk_kernel *k, int32_t ci, int64_t n, bool relaxed) {
     mark_idle(k);
     if (code == MK_DONE && sh) {
         publish(&sh->stepped[ci], n + 1);
-        if (!(c->resample && n >= k->startup_steps)) publish(&sh->published[ci], n + 1);
+        if (!(c->resample && !repeated(k, n))) publish(&sh->published[ci], n + 1);
     }
+    if (code == MK_DONE && relaxed && k->iterate && k->shared) publish(&k->shared->swept[ci], k->sweeps);
     return code;
+}
+
+/* Iterated macro steps: whether this process's components' coupled samples of macro step n changed
+ * by at most tolerance (1 + |sample|) in the last sweep (kernel.h: mk_kernel.iterate). If not, *at
+ * says where the change relative to 1 + |sample| was largest (component, output, change). */
+static bool settled(mk_kernel *k, int64_t n, mk_error *at) {
+    bool ok = true;
+    double worst = -1.0;
+    const uint8_t *coupled = k->coupled;
+    for (int32_t ci = 0; ci < k->n_components; coupled += k->components[ci].n_out, ci++) {
+        const mk_component *c = &k->components[ci];
+        if (!c->local) continue;
+        const int32_t nt = c->n_out_string + c->n_out_binary;
+        for (int64_t j = n * c->ratio + 1; j <= (n + 1) * c->ratio; j++) {
+            const double *now = c->hist + (j % c->cap) * c->n_out;
+            const double *before = c->hist_previous + (j % c->cap) * c->n_out;
+            for (int32_t o = 0; o < c->n_out; o++) {
+                if (!coupled[o]) continue;
+                const double d = fabs(now[o] - before[o]), scale = 1.0 + fabs(now[o]);
+                if (d <= k->tolerance * scale) continue;
+                ok = false;
+                if (d / scale > worst) {
+                    worst = d / scale;
+                    *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
+                                     .point = n * c->ratio, .variable = o, .value = d};
+                }
+            }
+            for (int32_t i = 0; i < nt; i++) { /* a String or Binary: settled when its bytes stay */
+                const char *a = string_slot(c, c->strings, j, i), *b = string_slot(c, c->strings_previous, j, i);
+                if (memcmp(a, b, 8 + (size_t)text_length(a)) == 0) continue;
+                ok = false;
+                if (worst < 0) {
+                    worst = 0.0; /* beyond the history's columns: a text output */
+                    *at = (mk_error){.code = MK_NOT_SETTLED, .component = ci, .call = -1,
+                                     .point = n * c->ratio, .variable = c->n_out + i};
+                }
+            }
+        }
+    }
+    return ok;
+}
+
+/* Every process's verdict on the last sweep (`settled`): one that has not settled advances the
+ * shared counter before the barrier; after it, all read the same count (none advances it again
+ * before the next sweep's barriers). MK_ABORTED if the run is cancelled. */
+static int32_t agree(mk_kernel *k, bool *all_settled) {
+    if (!k->shared) return MK_DONE;
+    if (!*all_settled) advance(k->shared->unsettled, 1);
+    if (barrier(k)) return MK_ABORTED;
+    const int64_t v = load(k->shared->unsettled);
+    *all_settled = v == k->unsettled_seen;
+    k->unsettled_seen = v;
+    return MK_DONE;
 }
 
 /* Start-up macro step n: step it, then repeat it `startup_sweeps` times from the saved FMU states
  * with relaxed windows on the previous sweep's samples (the whole system integrated together).
- * With several processes, barriers separate the sweeps and the snapshots of the histories. */
+ * With several processes, barriers separate the sweeps and the snapshots of the histories.
+ * Iterated macro steps (k->iterate) take this path at every macro step, sweeping until settled. */
 static int32_t startup_step(mk_kernel *k, int64_t n) {
     int32_t code = MK_DONE, saved = 0;
     for (; saved < k->n_components; saved++) {
@@ -1408,7 +1478,11 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
     }
     for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
         if (k->components[i].local) code = macro_step(k, i, n, false);
-    for (int32_t s = 0; code == MK_DONE && s < k->startup_sweeps; s++) {
+    const int32_t sweeps = k->iterate ? k->iterate : k->startup_sweeps;
+    bool done = !k->iterate, mine = true; /* every process's samples settled, this one's */
+    mk_error unsettled_at = {0};
+    int32_t s = 0;
+    for (; code == MK_DONE && s < sweeps && !(k->iterate && done); s++) {
         if ((code = barrier(k))) break;
         for (int32_t i = 0; i < k->n_components; i++) {
             mk_component *c = &k->components[i];
@@ -1419,6 +1493,7 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
                        (size_t)c->cap * (size_t)(c->n_out_string + c->n_out_binary) * MK_STRING_SLOT);
         }
         if ((code = barrier(k))) break;
+        k->sweeps++;
         for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++) {
             mk_component *c = &k->components[i];
             if (!c->local) continue;
@@ -1429,6 +1504,23 @@ static int32_t startup_step(mk_kernel *k, int64_t n) {
             if (st > STATUS_OK) code = fail(k, MK_FMI_ERROR, i, MK_CALL_SET_STATE, st, n * c->ratio);
             else code = macro_step(k, i, n, true);
         }
+        if (code == MK_DONE && k->iterate) {
+            done = mine = settled(k, n, &unsettled_at);
+            if ((code = agree(k, &done))) break;
+        }
+    }
+    if (code == MK_DONE && k->iterate) {
+        if (k->iterations && (!k->shared || k->shared->worker == 0)) {
+            k->iterations[0] += s;
+            if (s > k->iterations[1]) k->iterations[1] = s;
+            k->iterations[2]++;
+        }
+        if (!done && !mine) { /* every process knows; those whose components did not settle say so */
+            k->error = unsettled_at;
+            k->error.integer = (uint64_t)s;
+            code = MK_NOT_SETTLED;
+        } else if (!done)
+            code = barrier(k); /* settled here: the others fail, the supervisor stops this one */
     }
     if (code == MK_DONE) code = barrier(k); /* the next macro step reads the final sweep's samples */
     /* resampled in order, a barrier after each: its sources' samples are already published */
@@ -1592,7 +1684,7 @@ int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int6
             code = aborted(k);
             break;
         }
-        if (n < k->startup_steps) code = startup_step(k, n);
+        if (repeated(k, n)) code = startup_step(k, n);
         else {
             for (int32_t i = 0; code == MK_DONE && i < k->n_components; i++)
                 if (k->components[i].local) code = macro_step(k, i, n, false);

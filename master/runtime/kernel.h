@@ -51,6 +51,9 @@ enum {
     MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
                               the residual, the iterations) */
     MK_EVENT = 11,         /* a Model Exchange FMU asked for event mode (events are not handled yet) */
+    MK_NOT_SETTLED = 12,  /* iterated macro steps: a coupled signal still changed beyond the tolerance
+                             after the most sweeps allowed (mk_error: the component, its output with
+                             the largest change and that change, the sweeps in `integer`) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -339,6 +342,10 @@ typedef struct {
                                  not to begin) and its communication point */
     int64_t *busy;            /* [2]: CLOCK_MONOTONIC ns at which this worker's FMU step began (0:
                                  none running), and that component */
+    mk_counter *unsettled;    /* iterated macro steps: advanced by every process whose components'
+                                 coupled samples still changed in a sweep (read after a barrier) */
+    mk_counter *swept;        /* [n_components]: iterated sweeps a component has completed (a
+                                 consumer of a source that goes first waits for its current sweep) */
     int32_t worker;
     int32_t n_workers;
     int64_t spin_ns; /* how long a waiter spins before it sleeps */
@@ -425,6 +432,20 @@ typedef struct {
                                       -1 - l: algebraic loop l, its members resampled together */
     int32_t n_loops;
     mk_loop *loops;
+    /* Iterated macro steps (strong coupling): iterate > 0 repeats every macro step from the saved FMU
+     * states, as the start-up sweeps do, until no coupled sample of it (n k + 1 .. (n + 1) k of
+     * every column `coupled` marks, and every coupled String or Binary) changes by more than
+     * tolerance (1 + |sample|) between sweeps, in at most `iterate` sweeps (else MK_NOT_SETTLED).
+     * Its relaxed sweeps read a source that goes first from the current sweep (Gauss-Seidel
+     * waveform iteration; start-up sweeps without it read every source's previous sweep). Several
+     * processes agree through shared->unsettled, so every one does the same sweeps. */
+    int32_t iterate;           /* most sweeps per macro step; 0: explicit coupling */
+    double tolerance;
+    const uint8_t *coupled;    /* [sum of n_out over the components, in stepping order] */
+    int64_t *iterations;       /* [3]: sweeps in all, most in one macro step, macro steps iterated
+                                  (written by the only process, or worker 0: all count the same) */
+    int64_t sweeps;            /* sweeps this process has done (the target of shared->swept) */
+    int64_t unsettled_seen;    /* shared->unsettled as last read */
 } mk_kernel;
 
 /* Sizes of the structures, for the ctypes mirror to check itself against. */

@@ -48,7 +48,8 @@ INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for Solver
     TOO_LONG,
     NOT_CONVERGED,
     EVENT,
-) = range(12)
+    NOT_SETTLED,  # iterated macro steps: the sweeps did not settle (kernel.h)
+) = range(13)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -130,6 +131,8 @@ class Shared(C.Structure):
         ("stop_at", C.POINTER(Counter)),
         ("stopper", C.POINTER(_i64)),
         ("busy", C.POINTER(_i64)),
+        ("unsettled", C.POINTER(Counter)),
+        ("swept", C.POINTER(Counter)),
         ("worker", _i32),
         ("n_workers", _i32),
         ("spin_ns", _i64),
@@ -396,6 +399,12 @@ class Kernel(C.Structure):
         ("resample_order", C.POINTER(_i32)),
         ("n_loops", _i32),
         ("loops", C.POINTER(Loop)),
+        ("iterate", _i32),
+        ("tolerance", _f64),
+        ("coupled", C.POINTER(C.c_uint8)),
+        ("iterations", C.POINTER(_i64)),
+        ("sweeps", _i64),
+        ("unsettled_seen", _i64),
     ]
 
 

@@ -56,6 +56,9 @@ ME_CALLS = ("set_time", "set_states", "get_states", "get_derivatives", "complete
 ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
 
 
+STATE_FUNCTIONS = ("get_state", "set_state", "free_state")  # what repeating a macro step calls
+
+
 class Cancelled(Exception):
     """Another worker failed or the supervisor stopped the run: this worker has nothing to report."""
 
@@ -163,6 +166,9 @@ def layout(
     out["realtime"] = ((nw, 2), "int64")  # per worker: errno of SCHED_FIFO, of mlockall (-1: not tried)
     n_estimates = max(sum(len(lk.inputs) for lk in plan.links), 1)
     out["estimates"] = ((n_estimates, native.ERROR_FIELDS), "float64")  # see mk_link
+    out["unsettled"] = ((1, counter), "uint8")  # iterated macro steps (kernel.h)
+    out["swept"] = ((nc, counter), "uint8")
+    out["iterations"] = ((8,), "int64")  # [0..3): sweeps, most in one macro step, macro steps iterated
     out["steps"] = ((nc, 8), "int64")  # [i, 0]: component i's; a cache line each (workers write them)
     out["fmu_time"] = ((nc, 8), "float64")
     out["loops"] = ((max(len(plan.loops), 1), 8), "int64")  # per loop its counters (kernel.h mk_loop)
@@ -211,6 +217,7 @@ class CompiledPlan:
         k.startup_steps = plan.startup_steps
         k.startup_sweeps = plan.startup_sweeps
         k.record_every = plan.record_every
+        self._iteration(k)
         k.n_resample_order = len(order)
         entries = [self.names.index(n) if isinstance(n, str) else -1 - n for n in order]
         k.resample_order = _ptr(self._array(entries, np.int32), C.c_int32)
@@ -252,6 +259,20 @@ class CompiledPlan:
         self.position = 0  # the next macro step (after a failure: the one that failed)
 
     # -- building -------------------------------------------------------------------------------
+    def _iteration(self, k: native.Kernel) -> None:
+        """Iterated macro steps (kernel.h: mk_kernel.iterate): the sweeps allowed, the tolerance, the
+        history columns whose settling ends the sweeps (those a link reads) and the counts."""
+        it = self.plan.iteration
+        for name, fmu in zip(self.names, self.fmus, strict=True):  # the scenario layer has said so already
+            if it is not None and fmu is not None and any(_function(fmu, f) is None for f in STATE_FUNCTIONS):
+                raise FmuError(f"{name}: {fmu.path.name} cannot save its state: iterated macro steps need it")
+        k.iterate = it.max_iterations if it is not None else 0
+        k.tolerance = it.tolerance if it is not None else 0.0
+        read = {(lk.source, o) for lk in self.plan.links for o in lk.outputs}
+        mask = [(n, o) in read for n in self.names for o in self.outs[n]]
+        k.coupled = _ptr(self._array(mask, np.uint8), C.c_uint8)
+        k.iterations = _ptr(self.memory["iterations"], C.c_int64)
+
     def _array(self, values, dtype) -> np.ndarray:
         a = np.ascontiguousarray(values, dtype=dtype)
         if a.size == 0:
@@ -730,6 +751,21 @@ class CompiledPlan:
                 name,
                 t,
             )
+        if e.code == native.NOT_SETTLED:
+            outs = self.outs[name] + string_output_names(self.plan, name)
+            it = self.plan.iteration
+            end = pc.clock.time(e.point + pc.ratio)
+            by = f" by {e.value:.3g}" if e.variable < len(self.outs[name]) else ""  # a String: no number
+            sweeps = f"{int(e.integer)} sweep" + ("s" if e.integer != 1 else "")
+            return SimulationError(
+                f"iterated coupling did not converge in the macro step from t={t} to t={end}: after "
+                f"{sweeps} {name}.{outs[e.variable]} still changed{by} "
+                f"(tolerance {it.tolerance:g} (1 + |value|)); raise maxIterations of mm:Iteration or "
+                "shorten the macro step",
+                name,
+                t,
+                outs[e.variable],
+            )
         if e.code in (native.NOT_FINITE, native.DIVERGED):
             bad = self.outs[name][e.variable]
             if e.code == native.DIVERGED:
@@ -867,6 +903,8 @@ def shared_view(memory: Memory, worker: int, n_workers: int, spin: float = SPIN_
         "rows_drained",
         "cancel",
         "stop_at",
+        "unsettled",
+        "swept",
     ):
         setattr(sh, name, C.cast(memory[name].ctypes.data, C.POINTER(native.Counter)))
     sh.stopper = C.cast(memory["stopper"].ctypes.data, C.POINTER(C.c_int64))
@@ -1029,6 +1067,15 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }
     return out
+
+
+def iteration_counts(plan: Plan, memory: Memory) -> dict[str, int] | None:
+    """Iterated macro steps: "sweeps" (repetitions from saved states, in all), "max" (the most in
+    one macro step), "macro_steps" (those iterated); None when the plan does not iterate."""
+    if plan.iteration is None:
+        return None
+    counts = memory["iterations"]
+    return {"sweeps": int(counts[0]), "max": int(counts[1]), "macro_steps": int(counts[2])}
 
 
 def shared_stop(plan: Plan, memory: Memory) -> tuple[str, float] | None:

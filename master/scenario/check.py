@@ -60,6 +60,7 @@ def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[P
     _stimuli(sc, infos, driven, at)
     _record(sc, infos, at)
     _model_exchange(sc, infos, at)
+    _iteration(sc, infos, at)
     return problems.items
 
 
@@ -151,6 +152,17 @@ def _components(sc: Scenario, at: At) -> None:
             at(what, f"tolerance {it.tolerance!r}: between 0 and 1 (relative to 1 + |value|)")
         if not _whole(it.max_iterations) or not 1 <= it.max_iterations <= MAX_ITERATIONS:
             at(what, f"max_iterations {it.max_iterations!r}: a whole number in 1..{MAX_ITERATIONS}")
+
+
+def _iteration(sc: Scenario, infos: Infos, at: At) -> None:
+    """Iterated macro steps repeat each macro step from saved FMU states: every FMU must save its state."""
+    if sc.iteration is None:
+        return
+    for c in sc.components:
+        info = infos.get(c.name)
+        problem = fmuinfo.iteration_problem(info) if info is not None else None
+        if problem:
+            at(f"component {c.name}", problem)
 
 
 def _order_ok(order: object) -> bool:

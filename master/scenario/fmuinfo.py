@@ -124,6 +124,15 @@ def no_element(variables: Mapping[str, Any], name: str) -> str | None:
     return f"{split[0]} is {typed(v.fmi_type, v.shape)}: it has no element {name}"
 
 
+def iteration_problem(info: Description) -> str | None:
+    """Why iterated macro steps cannot run this FMU (they repeat each macro step from its saved
+    state); None if they can."""
+    if info.co_simulation is not None and info.co_simulation.can_get_set_state:
+        return None
+    return (f"iterated macro steps (mm:Iteration) repeat each macro step from saved FMU states, but "
+            f"{info.path.name} cannot save its state (canGetAndSetFMUstate false)")  # fmt: skip
+
+
 def stimulus_problem(fmi_type: str, fmi_version: str, kind: str, shape: tuple[int, ...] = ()) -> str | None:
     """Why a stimulus of `kind` ("step" or "table") cannot drive an input of this type (and shape:
     () for a scalar); None if it can. Numeric, Boolean and Enumeration scalar inputs take steps;

@@ -19,7 +19,7 @@ from master.schedule import Clock
 from master.solvers import NUMBERS
 
 from .context import Context
-from .fmuinfo import point_problem, record_problem, stimulus_problem
+from .fmuinfo import iteration_problem, point_problem, record_problem, stimulus_problem
 from .model import Iteration, LoopSolver, ModelExchange, Scheme, Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
@@ -160,6 +160,7 @@ def read(
     _record(ctx, elem, s)
     _stimuli(ctx, elem, s)
     _coupling_iterations(ctx, elem, s)
+    _saved_states(ctx, elem, s)
     return s
 
 
@@ -181,6 +182,17 @@ def _coupling_iterations(ctx: Context, elem: etree._Element, s: Settings) -> Non
             tolerance=_tolerance(iteration, default.tolerance),
             max_iterations=_iterations(ctx, iteration, default.max_iterations),
         )
+
+
+def _saved_states(ctx: Context, elem: etree._Element, s: Settings) -> None:
+    """Iterated macro steps: every FMU saves its state (the problem at mm:Iteration, per component)."""
+    if s.iteration is None:
+        return
+    where = elem.find(tag(NS_MM, "Iteration"))
+    for name, comp in ctx.comps.items():
+        problem = iteration_problem(comp.info) if comp.info is not None else None
+        if problem:
+            ctx.at(where, f"component {name}: {problem}")
 
 
 def _tolerance(elem: etree._Element, default: float) -> float:

@@ -3,7 +3,8 @@
 The copy keeps everything of the original (comments, parameter sets, connectors, stimuli) and
 changes only what differs between two loaded scenarios: the macro step, the coupling and its
 order, each component's step ratio, extrapolation order and input interpolation, the record
-interval and whether coupling errors are recorded, and parameter values (appended as a last
+interval and whether coupling errors are recorded, iterated macro steps (mm:Iteration), and
+parameter values (appended as a last
 inline parameter set of the top system, names relative to it such as "comp.var" or
 "sub.comp.var": SSP gives the top system's bindings precedence over all others).
 Per-connection extrapolation orders are removed when the new scenario has none. An .ssp is
@@ -131,6 +132,13 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
         _child(settings, "Record").set("interval", decimal(new.record_interval))
     if new.record_coupling_errors != old.record_coupling_errors:
         _child(settings, "Record").set("couplingErrors", "true" if new.record_coupling_errors else "false")
+    if new.iteration != old.iteration:
+        for elem in settings.findall(tag(NS_MM, "Iteration")):
+            settings.remove(elem)
+        if new.iteration is not None:
+            it = _child(settings, "Iteration")
+            it.set("tolerance", repr(new.iteration.tolerance))
+            it.set("maxIterations", str(new.iteration.max_iterations))
     changes: dict[str, tuple[Variable, Value]] = {}
     for comp in new.components:
         before = old.component(comp.name).parameters
@@ -169,12 +177,12 @@ def _settings(system: etree._Element) -> etree._Element:
 
 def _child(parent: etree._Element, kind: str, **attrs: str) -> etree._Element:
     """The first mm:`kind` child with these attributes, or a new one in the schema's place
-    (components first, then connections, the record, the stimuli)."""
+    (components first, then connections, the record, the stimuli, loops, iteration)."""
     for elem in parent.findall(tag(NS_MM, kind)):
         if all(elem.get(k) == v for k, v in attrs.items()):
             return elem
     elem = etree.Element(tag(NS_MM, kind), **attrs)
-    order = ["Component", "Connection", "Record", "Stimuli"]
+    order = ["Component", "Connection", "Record", "Stimuli", "Loops", "Iteration"]
     later = [e for e in parent if etree.QName(e).localname in order[order.index(kind) + 1 :]]
     if later:
         later[0].addprevious(elem)
