@@ -20,8 +20,10 @@ from fractions import Fraction
 from pathlib import Path
 
 import master.api as api
-from master.fmu import read_description, variables_of
-from master.scenario.model import SOLVERS, Component, ModelExchange
+from master.description import variables_of
+from master.fmu import read_description
+from master.scenario.model import Component, ModelExchange
+from master.solvers import ITEMS
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ("hydraulic-manipulator", "dc-motor-arm")
@@ -32,7 +34,7 @@ def as_model_exchange(comp: Component) -> Component:
     v = variables_of(read_description(comp.fmu_path))
     solver = int(comp.parameters.get("solver", v["solver"].start))
     h = Fraction(float(comp.parameters.get("internal_step", v["internal_step"].start)))
-    return dataclasses.replace(comp, model_exchange=ModelExchange(SOLVERS[solver - 1], h if h > 0 else None))
+    return dataclasses.replace(comp, model_exchange=ModelExchange(ITEMS[solver], h if h > 0 else None))
 
 
 def measure(sc, repeat: int) -> tuple[dict[str, float], float]:

@@ -34,8 +34,9 @@ from pathlib import Path
 
 import master.api as api
 from master.backends.component import output_names, samples_read
+from master.description import feedthrough_outputs, variables_of
 from master.evidence.oscillator import scene as oscillator_scene
-from master.fmu import feedthrough_outputs, read_description, safe_extract, variables_of
+from master.fmu import read_description, safe_extract
 from master.runtime.tables import resampling
 from master.scenario.model import Scenario
 

@@ -25,6 +25,7 @@ from master.backends.auto import choose_backend
 from master.backends.worker import cpu_count
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
+from master.solvers import EULER
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -33,7 +34,7 @@ def ring(n: int, cost_us: float, steps: int) -> Scenario:
     """n crashtest lags in a ring, explicit Euler: one derivative (cost_us of CPU) per step."""
     ct = fmu_path("crashtest")
     comps = tuple(
-        Component(f"c{i}", ct, {"solver": 1, "cost_us": cost_us, "y": float(i)}, 1, 1) for i in range(n)
+        Component(f"c{i}", ct, {"solver": EULER, "cost_us": cost_us, "y": float(i)}, 1, 1) for i in range(n)
     )
     conns = tuple(Connection(f"c{i}", "y", f"c{(i + 1) % n}", "u") for i in range(n))
     H = Fraction(1, 1000)

@@ -209,7 +209,8 @@ def check(case: dict) -> dict[str, dict[str, float] | str]:
 def case_of(sc) -> dict:
     """The case of a master.scenario Scenario (stimuli held at their last value)."""
     from master.api import plan
-    from master.fmu import read_description, variables_of
+    from master.description import variables_of
+    from master.fmu import read_description
 
     comps = []
     for pc in plan(sc).components:

@@ -27,6 +27,7 @@ from pathlib import Path
 import master.api as api
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
+from master.solvers import RK4
 
 STEP_TIMEOUT = 0.5
 
@@ -35,7 +36,8 @@ def ring(n: int, stop: Fraction, params: dict[str, dict] | None = None) -> Scena
     """n crashtest lags in a ring (c0.y -> c1.u -> ... -> c0.u), RK4, H = 10 ms."""
     ct, params = fmu_path("crashtest"), params or {}
     comps = tuple(
-        Component(f"c{i}", ct, {"solver": 4, "y": i - 0.5, **params.get(f"c{i}", {})}, 1, 2) for i in range(n)
+        Component(f"c{i}", ct, {"solver": RK4, "y": i - 0.5, **params.get(f"c{i}", {})}, 1, 2)
+        for i in range(n)
     )
     conns = tuple(Connection(f"c{i}", "y", f"c{(i + 1) % n}", "u") for i in range(n))
     return Scenario(Path("ring.ssd"), "ring", comps, conns, Fraction(0), stop, Fraction(1, 100))

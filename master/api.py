@@ -16,18 +16,19 @@ from pathlib import Path
 from master import extras
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
-from master.fmu import (
-    FmuError,
+from master.description import (
+    CO_SIMULATION,
+    MODEL_EXCHANGE,
     defects,
-    output_dependencies,
-    read_description,
+    interfaces,
     runs_as_model_exchange,
     variables_of,
 )
+from master.fmu import FmuError, read_description
 from master.recorder import Recorder, ResultsError, RunResult, RunSummary, metadata_path
 from master.scenario import ScenarioError, check
 from master.scenario.model import Component, Scenario, Value
-from master.schedule import Capability, Plan, build_plan
+from master.schedule import Plan, build_plan
 
 log = logging.getLogger("master")
 
@@ -132,7 +133,8 @@ def _typed_value(c: Component, name: str, key: str, text: str) -> Value:
     """A --set text for variable `name` of component `c`, converted as the scenario reader does
     (hex digits for a Binary, an item name for an Enumeration); `parse_value`'s guess where the
     FMU cannot be read or has no such variable (the run then says why)."""
-    from master.scenario.fmuinfo import SourceError, lookup
+    from master.description import lookup
+    from master.scenario.fmuinfo import SourceError
     from master.scenario.fmuinfo import read as read_info
     from master.scenario.values import BadValue, from_string
 
@@ -167,21 +169,8 @@ def plan(sc: Scenario) -> Plan:
         except FmuError as e:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
-        me = runs_as_model_exchange(md, c.model_exchange is not None)
-        cs = md.modelExchange if me else md.coSimulation  # the interface it is instantiated for
-        depends, assumed = output_dependencies(md)
-        caps[c.name] = Capability(
-            bool(getattr(cs, "canInterpolateInputs", False)),
-            md.fmiVersion,
-            bool(cs.canGetAndSetFMUstate),
-            bool(cs.canBeInstantiatedOnlyOncePerProcess),
-            bool(cs.needsExecutionTool),
-            depends,
-            assumed,
-            bool(cs.providesDirectionalDerivative),
-            me,
-            md.numberOfEventIndicators if me else 0,
-        )
+        kind = MODEL_EXCHANGE if runs_as_model_exchange(md, c.model_exchange is not None) else CO_SIMULATION
+        caps[c.name] = interfaces(md).get(kind)  # the interface it is instantiated for (none: `check` says)
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
         raise ScenarioError(problems)
@@ -367,7 +356,7 @@ def _units(sc: Scenario, p: Plan) -> dict[str, str | None]:
 def _variables(sc: Scenario):
     """find(component, name): the model variable a recorded name means (an array element: its
     array), None if none."""
-    from master.scenario.fmuinfo import lookup
+    from master.description import lookup
 
     described = {c.name: variables_of(read_description(Path(c.fmu_path))) for c in sc.components}
 

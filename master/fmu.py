@@ -10,113 +10,40 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import math
-import re
 import shutil
 import tempfile
 import zipfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import ModelDescription, Unknown, ValidationError, read_model_description
-from fmpy.validation import validate_model_description
+from fmpy.model_description import ModelDescription
 
-REAL_TYPES = ("Real", "Float64", "Float32")
-INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
+from master.archives import DAMAGED, unsafe
+from master.description import (
+    FMI3_INTEGERS,
+    Variable,
+    feedthrough_outputs,
+    fmi_function,
+    hex_bytes,
+    lookup,
+    parse,
+    runs_as_model_exchange,
+    typed,
+    unsupported,
+    variables_of,
+)
 
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a failure
 NO_STATE_RESTORED = ctypes.c_int(1)  # doStep's noSetFMUStatePriorToCurrentPoint
-# FMI function behind each raw call, for error messages
-RAW_NAMES = {
-    "1": {  # FMI 1.0 Co-Simulation: exported as <modelIdentifier>_<name> (Fmu.function_name)
-        "get_real": "fmiGetReal",
-        "set_real": "fmiSetReal",
-        "do_step": "fmiDoStep",
-        "set_input_derivatives": "fmiSetRealInputDerivatives",
-        "get_integer": "fmiGetInteger",
-        "get_boolean": "fmiGetBoolean",
-        "set_integer": "fmiSetInteger",
-        "set_boolean": "fmiSetBoolean",
-        "get_string": "fmiGetString",
-        "set_string": "fmiSetString",
-    },
-    "2": {
-        "get_real": "fmi2GetReal",
-        "set_real": "fmi2SetReal",
-        "do_step": "fmi2DoStep",
-        "set_input_derivatives": "fmi2SetRealInputDerivatives",
-        "get_integer": "fmi2GetInteger",
-        "get_boolean": "fmi2GetBoolean",
-        "set_integer": "fmi2SetInteger",
-        "set_boolean": "fmi2SetBoolean",
-        "get_state": "fmi2GetFMUstate",
-        "set_state": "fmi2SetFMUstate",
-        "free_state": "fmi2FreeFMUstate",
-        "get_string": "fmi2GetString",
-        "set_string": "fmi2SetString",
-    },
-    "3": {
-        "get_real": "fmi3GetFloat64",
-        "set_real": "fmi3SetFloat64",
-        "do_step": "fmi3DoStep",
-        "get_integer": "fmi3GetInt32",
-        "get_boolean": "fmi3GetBoolean",
-        "set_integer": "fmi3SetInt32",
-        "set_boolean": "fmi3SetBoolean",
-        "get_state": "fmi3GetFMUState",
-        "set_state": "fmi3SetFMUState",
-        "free_state": "fmi3FreeFMUState",
-        "get_string": "fmi3GetString",
-        "set_string": "fmi3SetString",
-        "get_binary": "fmi3GetBinary",
-        "set_binary": "fmi3SetBinary",
-    },
-}
 
 
 class FmuError(Exception):
     """A failing FMU: bad file, bad model description or a failing FMI call."""
 
 
-class InvalidDescription(Exception):
-    """A modelDescription.xml the master cannot use: fmpy's findings, on one line."""
-
-    def __init__(self, problems: list[str]) -> None:
-        super().__init__("; ".join(problems))
-
-
-@dataclass(frozen=True)
-class VariableInfo:
-    """What the master needs to know about one variable (a scalar, or an FMI 3 array: one value
-    reference for all its elements)."""
-
-    name: str
-    vr: int
-    type: str  # "Real", "Integer", "Boolean", "String" or "Enumeration" (FMI 3 types mapped)
-    causality: str
-    variability: str
-    initial: str | None
-    start: str | None
-    unit: str | None
-    description: str | None
-    fmi_type: str = (
-        ""  # as the FMU spells it: Real, Float64, Float32, Int8, ..., Enumeration (fmuinfo.coupling_kind)
-    )
-    shape: tuple[int, ...] = ()  # FMI 3 array: its dimensions (the start sizes); () for a scalar
-
-    @property
-    def size(self) -> int:
-        """Number of values: the product of the dimensions, 1 for a scalar."""
-        return math.prod(self.shape)
-
-
-FMI3_INTEGERS = ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
-
-
-def _fmi3_kind(v: VariableInfo) -> str:
+def _fmi3_kind(v: Variable) -> str:
     """The FMI 3 type whose calls read and write `v` (an Enumeration is an Int64)."""
     t = v.fmi_type or v.type
     return "Int64" if t == "Enumeration" else t
@@ -127,14 +54,6 @@ def _shown(value: object) -> str:
     if isinstance(value, bytes) and len(value) > 16:
         return f"{len(value)} bytes {value[:8].hex()}..."
     return repr(value)
-
-
-def _plain_type(t: str) -> str:
-    if t in REAL_TYPES:
-        return "Real"
-    if t in INTEGER_TYPES:
-        return "Integer"
-    return t
 
 
 def read_description(path: Path) -> ModelDescription:
@@ -148,146 +67,6 @@ def read_description(path: Path) -> ModelDescription:
         raise FmuError(f"{path}: FMU file not found")
     st = path.stat()
     return _read_description(path.resolve(), st.st_mtime_ns, st.st_size)
-
-
-def parse(path: Path) -> ModelDescription:
-    """An FMU file's modelDescription.xml parsed and checked against the FMI schema by fmpy, once
-    per file version (path, modification time, size) and process: the one reader that
-    read_description, the scenario layer (scenario/fmuinfo.py) and the references share. A
-    description that breaks one of fmpy's further rules that `tolerated` names (as peer masters
-    do) is read all the same: `defects` lists them. Raises an Exception with one line saying why
-    for a description that cannot be used; callers must not change the object they get."""
-    return _parsed(path)[0]
-
-
-def defects(path: Path) -> tuple[str, ...]:
-    """What fmpy's strict validation finds wrong with a description `parse` reads all the same
-    (fmpy's words, each naming the variable and its line); empty for a valid one."""
-    return _parsed(path)[1]
-
-
-def _parsed(path: Path) -> tuple[ModelDescription, tuple[str, ...]]:
-    path = Path(path)
-    st = path.stat()
-    return _parse(path.resolve(), st.st_mtime_ns, st.st_size)
-
-
-# fmpy's validation findings that leave a description usable by this master, as peer masters
-# (libcosim, ecos, OMSimulator) read them; any other finding refuses the FMU.
-TOLERATED = (
-    # units are compared as written (a connection's two units must be equal), never looked up
-    re.compile(r'^The (display )?unit "[^"]*" of .*variable "[^"]*" .*is not defined\.$'),
-    # a non-Real signal is held between communication points whatever its variability says
-    re.compile(
-        r'^The variable "[^"]*" \(line \d+\) is of type \w+ and must have variability != "continuous"\.$'
-    ),
-    # start values of calculated and independent variables are never set by the master
-    re.compile(r'^The variable "[^"]*" \(line \d+\) has (initial="calculated"|causality="independent") but'),
-)
-_DUPLICATE = re.compile(r'^The variable name "(?P<name>[^"]*)" \(line \d+\) is not unique\.$')
-
-
-def tolerated(problem: str, md: ModelDescription) -> bool:
-    """Whether fmpy's validation finding `problem` leaves the description `md` usable: see
-    TOLERATED; a name used twice only among local variables (FMI 1.0 "internal"), which no
-    connection, binding or stimulus can name."""
-    if any(r.match(problem) for r in TOLERATED):
-        return True
-    dup = _DUPLICATE.match(problem)
-    if dup is None:
-        return False
-    same = [v for v in md.modelVariables if v.name == dup["name"]]
-    return all(v.causality in ("local", "internal") for v in same)
-
-
-@functools.lru_cache(maxsize=64)
-def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tuple[str, ...]]:
-    md, found = _checked(path)
-    if md.fmiVersion == "1.0":
-        _fmi1_terms(path, md)
-    return md, found
-
-
-# FMI 1.0 Co-Simulation capabilities that fmpy does not read -> how to read each
-FMI1_CAPABILITIES = {
-    "canHandleVariableCommunicationStepSize": lambda x: x == "true",
-    "canInterpolateInputs": lambda x: x == "true",
-    "maxOutputDerivativeOrder": int,
-    "canBeInstantiatedOnlyOncePerProcess": lambda x: x == "true",
-}
-
-
-def _fmi1_terms(path: Path, md: ModelDescription) -> None:
-    """An FMI 1.0 description in FMI 2's terms where fmpy leaves FMI 1's (it already reads
-    causality "internal" as local and variability "parameter" as a parameter): causality "none"
-    (no influence on the model) is local too; the outputs are listed with their DirectDependency
-    as FMI 2's ModelStructure lists them (fmpy lists none); the Capabilities attributes, which fmpy leaves at
-    their defaults, are set on its CoSimulation; an FMU of CoSimulation_Tool wraps a tool, FMI 2's
-    needsExecutionTool."""
-    from lxml import etree
-
-    for v in md.modelVariables:
-        if v.causality == "none":
-            v.causality = "local"
-    with zipfile.ZipFile(path) as zf:
-        root = etree.fromstring(zf.read("modelDescription.xml"))
-    # the outputs with their DirectDependency (the inputs each depends on directly; none given:
-    # every input), where FMI 2 lists them in ModelStructure
-    by_name = {v.name: v for v in md.modelVariables}
-    for i, e in enumerate(root.findall("ModelVariables/ScalarVariable"), 1):
-        if e.get("causality") != "output":
-            continue
-        direct = e.find("DirectDependency")
-        names = [(n.text or "").strip() for n in direct.findall("Name")] if direct is not None else None
-        # a name that is no variable: assume the output depends on every input, as without the list
-        depends = [by_name[n] for n in names] if names is not None and set(names) <= by_name.keys() else None
-        md.outputs.append(Unknown(index=i, variable=by_name[e.get("name")], dependencies=depends))
-    if md.coSimulation is None:
-        return
-
-    for kind in root.findall("Implementation/*"):
-        if kind.tag == "CoSimulation_Tool":
-            md.coSimulation.needsExecutionTool = True
-        caps = kind.find("Capabilities")
-        for name, read in FMI1_CAPABILITIES.items():
-            if caps is not None and caps.get(name) is not None:
-                setattr(md.coSimulation, name, read(caps.get(name)))
-
-
-def _checked(path: Path) -> tuple[ModelDescription, tuple[str, ...]]:
-    try:
-        return read_model_description(str(path), validate=True), ()
-    except ValidationError as strict:
-        problems = list(strict.problems)
-    try:
-        md = read_model_description(str(path), validate=False)
-    except Exception:
-        raise InvalidDescription(problems) from None
-    found = validate_model_description(md)
-    if found != problems:  # the schema refused it: its structure cannot be trusted
-        raise InvalidDescription(problems)
-    refused = [p for p in found if not tolerated(p, md)]
-    if refused:
-        raise InvalidDescription(refused)
-    return md, tuple(found)
-
-
-def unsupported(md: ModelDescription, path: Path) -> str | None:
-    """Why the master cannot run the FMU at `path` (description `md`); None if it can. The one
-    rule that `validate` and `run` share: FMI 1.0, 2.0 or 3.x, a Co-Simulation interface, a binary
-    for this platform."""
-    from fmpy import platform, platform_tuple, supported_platforms
-
-    if md.fmiVersion not in ("1.0", "2.0") and not md.fmiVersion.startswith("3."):
-        return (
-            f"FMI {md.fmiVersion} is not supported: the master runs FMI 1.0, 2.0 and 3.x co-simulation FMUs"
-        )
-    if md.coSimulation is None and (md.modelExchange is None or md.fmiVersion == "1.0"):
-        return f"model '{md.modelName}' has no co-simulation interface (nor one of Model Exchange 2.0 or 3.0)"
-    has = supported_platforms(str(path))
-    if platform not in has and platform_tuple not in has:
-        return f"no binary for this platform ({platform}); the FMU has: {', '.join(has) or 'none'}"
-    return None
 
 
 @functools.lru_cache(maxsize=64)
@@ -304,65 +83,13 @@ def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescriptio
     return md
 
 
-def runs_as_model_exchange(md: ModelDescription, asked: bool = False) -> bool:
-    """Whether the master integrates an FMU of description `md` itself, as a Model Exchange
-    component: asked for (a component's modelExchange setting), or the FMU has no Co-Simulation
-    interface."""
-    return asked or md.coSimulation is None
-
-
-def variables_of(md: ModelDescription) -> dict[str, VariableInfo]:
-    """Variables of a model description by name; an FMI 3 array with its shape (the sizes its
-    dimensions start with, read by fmpy: a Dimension's start or its structural parameter's)."""
-    out: dict[str, VariableInfo] = {}
-    for v in md.modelVariables:
-        out[v.name] = VariableInfo(
-            name=v.name,
-            vr=int(v.valueReference),
-            type=_plain_type(v.type),
-            causality=v.causality,
-            variability=v.variability,
-            initial=v.initial,
-            start=v.start,
-            unit=v.unit if v.unit is not None else (v.declaredType.unit if v.declaredType else None),
-            description=v.description,
-            fmi_type=v.type,
-            shape=tuple(int(n) for n in getattr(v, "shape", ()) or ()),
-        )
-    return out
-
-
-def feedthrough_outputs(md: ModelDescription) -> set[str]:
-    """Outputs that may depend directly on inputs (no dependency list: assume they do)."""
-    depends, _ = output_dependencies(md)
-    return {o for o, inputs in depends.items() if inputs}
-
-
-def output_dependencies(md: ModelDescription) -> tuple[dict[str, frozenset[str]], frozenset[str]]:
-    """(output -> the inputs it depends on directly, the outputs that declare no dependencies):
-    an output without a `dependencies` attribute depends on every input (FMI 2.0 section 2.2.8,
-    FMI 3.0 section 2.4.8), an assumption the loop solver tests at the start of a run."""
-    inputs = frozenset(v.name for v in md.modelVariables if v.causality == "input")
-    depends: dict[str, frozenset[str]] = {}
-    assumed = set()
-    for u in md.outputs:
-        if u.dependencies is None:
-            depends[u.variable.name] = inputs
-            assumed.add(u.variable.name)
-        else:
-            depends[u.variable.name] = frozenset(d.name for d in u.dependencies) & inputs
-    return depends, frozenset(assumed)
-
-
 def safe_extract(path: Path, dest: Path) -> Path:
     """Extract what running the FMU archive `path` needs into `dest`; refuse unsafe members (the
-    scenario layer's check, master.scenario.archive.unsafe) and report damaged data as an FmuError.
+    check of master.archives) and report damaged data as an FmuError.
 
     Every member is checked; documentation/, other platforms' binaries and, when this platform's
     binary is there, sources/ are not written (a run extracts each FMU afresh: most of an FMU
     built from C is its sources)."""
-    from master.scenario.archive import DAMAGED, unsafe
-
     dest = Path(dest).resolve()
     try:
         with zipfile.ZipFile(path) as zf:
@@ -657,7 +384,7 @@ class Fmu:
 
     def call_error(self, call: str, status: int) -> FmuError:
         """The FmuError for raw call `call` ("get_real", "set_real", "do_step", ...) returning `status`."""
-        name = self.function_name(RAW_NAMES[str(self.fmi)][call])
+        name = self.function_name(fmi_function(call, self.fmi))
         return FmuError(self.describe(str(FMICallException(function=name, status=status))))
 
     def real_port(self, names: list[str]) -> RealPort:
@@ -675,11 +402,9 @@ class Fmu:
     # -- typed values (set-up, recording of non-Real variables) ---------------------------------
     def set_values(self, values: dict[str, object]) -> None:
         """Set parameters / start values by name, converting each to the variable's type. An
-        element of an FMI 3 array is named y[i,j] (master.scenario.fmuinfo.element_names): the
+        element of an FMI 3 array is named y[i,j] (master.description.element_names): the
         array is set whole, its other elements at their start values."""
-        from master.scenario.fmuinfo import lookup, typed
-
-        arrays: dict[str, tuple[VariableInfo, dict[int, object]]] = {}
+        arrays: dict[str, tuple[Variable, dict[int, object]]] = {}
         for name, value in values.items():
             found = lookup(self.variables, name)
             if found is None:
@@ -705,7 +430,7 @@ class Fmu:
             except FMICallException as e:
                 raise FmuError(self.describe(f"cannot set {v.name}: {e}")) from e
 
-    def _set_array(self, v: VariableInfo, elements: dict[int, object]) -> None:
+    def _set_array(self, v: Variable, elements: dict[int, object]) -> None:
         """An FMI 3 array through one call of its type: the elements given (position in row-major
         order -> value), the others at their start values."""
         kind = _fmi3_kind(v)
@@ -719,7 +444,7 @@ class Fmu:
             values[position] = self._converted(v, kind, value)
         getattr(self.slave, f"set{kind}")([v.vr], values)
 
-    def _set_one(self, v: VariableInfo, value: object) -> None:
+    def _set_one(self, v: Variable, value: object) -> None:
         """One value through the call of the variable's own type (FMI 3: Float32, Int8 ... UInt64,
         Enumeration as Int64 too, Binary through fmi3SetBinary)."""
         kind = _fmi3_kind(v) if self.fmi3 else v.type
@@ -727,7 +452,7 @@ class Fmu:
         name = "Integer" if kind == "Enumeration" else kind  # (in FMI 3 _fmi3_kind says Int64)
         getattr(self.slave, f"set{name}")([v.vr], [x])
 
-    def _converted(self, v: VariableInfo, kind: str, value: object) -> object:
+    def _converted(self, v: Variable, kind: str, value: object) -> object:
         """`value` (a number, a bool, text from a start attribute or a binding, bytes) as the set
         call of `kind` takes it; FmuError if it is not one."""
         if kind in ("Real", "Float64", "Float32"):
@@ -748,11 +473,9 @@ class Fmu:
             return self._bytes(v, value)
         raise FmuError(f"{self.name}.{v.name}: variables of type {v.fmi_type or v.type} are not supported")
 
-    def _bytes(self, v: VariableInfo, value: object) -> bytes:
+    def _bytes(self, v: Variable, value: object) -> bytes:
         """A Binary value: bytes as they are, text as hex digits (a Scenario built in Python, or
         set_values given as text)."""
-        from master.scenario.values import hex_bytes
-
         if isinstance(value, (bytes, bytearray)):
             return bytes(value)
         if isinstance(value, str):

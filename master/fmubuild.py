@@ -43,6 +43,8 @@ from typing import Any
 
 from lxml import etree
 
+from master import solvers
+
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_DIR = PACKAGE_DIR.parent  # a source checkout, if fmus/ is beside the package
 
@@ -72,18 +74,6 @@ CFLAGS = ["-O2", "-Wall", "-Wextra", "-Werror", "-std=c99", "-D_POSIX_C_SOURCE=2
 GENERATION_TOOL = "master.fmubuild"
 PLATFORM = "linux64"  # FMI 2.0 binaries folder
 PLATFORM3 = "x86_64-linux"  # FMI 3.0 platform tuple
-
-# Descriptions of the values 1 .. SOLVER_COUNT of the C enumeration SolverKind (fmus/fmi/model.h);
-# describe() checks the count against the C side.
-SOLVER_ITEMS = [
-    ("euler", "explicit Euler"),
-    ("ab2", "Adams-Bashforth 2"),
-    ("ab3", "Adams-Bashforth 3"),
-    ("rk4", "classical Runge-Kutta 4"),
-    ("semi_implicit_euler", "semi-implicit (linearly implicit) Euler"),
-    ("semi_implicit_midpoint", "semi-implicit midpoint"),
-]
-
 
 FMI_VERSIONS = (1, 2, 3)
 # The layer's interface file of each FMI version; an FMU is built with its own one only.
@@ -220,11 +210,13 @@ def describe(name: str) -> dict[str, Any]:
             if isinstance(v[key], str):
                 v[key] = float(v[key])
         v["size"] = math.prod(v["dimensions"])
-    if desc["solver_count"] != len(SOLVER_ITEMS):
-        raise FmuBuildError(
-            f"{FMI_DIR / 'model.h'}: SOLVER_COUNT is {desc['solver_count']} but {Path(__file__).name} "
-            f"describes {len(SOLVER_ITEMS)} solvers (SOLVER_ITEMS)"
+    mismatch = solvers.c_mismatch((FMI_DIR / "model.h").read_text())
+    if mismatch is None and desc["solver_count"] != len(solvers.SOLVERS):
+        mismatch = (
+            f"SOLVER_COUNT is {desc['solver_count']} but master/solvers.py has {len(solvers.SOLVERS)} solvers"
         )
+    if mismatch:
+        raise FmuBuildError(f"{FMI_DIR / 'model.h'}: {mismatch}")
     _check_table(name, desc)
     return desc
 
@@ -505,8 +497,10 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
         types = etree.SubElement(root, "TypeDefinitions")
         simple = etree.SubElement(types, "SimpleType", name="Solver")
         enum = etree.SubElement(simple, "Enumeration")
-        for value, (item, text) in enumerate(SOLVER_ITEMS, start=1):
-            etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
+        for solver in solvers.SOLVERS:
+            etree.SubElement(
+                enum, "Item", name=solver.item, value=str(solver.number), description=solver.description
+            )
 
     _log_categories(root, desc)
     _default_experiment(root, desc)
@@ -752,8 +746,10 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     if any(v["type"] == "Solver" for v in variables):
         types = etree.SubElement(root, "TypeDefinitions")
         enum = etree.SubElement(types, "EnumerationType", name="Solver")
-        for value, (item, text) in enumerate(SOLVER_ITEMS, start=1):
-            etree.SubElement(enum, "Item", name=item, value=str(value), description=text)
+        for solver in solvers.SOLVERS:
+            etree.SubElement(
+                enum, "Item", name=solver.item, value=str(solver.number), description=solver.description
+            )
     _log_categories(root, desc)
     _default_experiment(root, desc)
 

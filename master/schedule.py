@@ -14,13 +14,11 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-from master.fmu import VariableInfo
+from master.description import Capability, Variable, element_names, lookup
 from master.scenario.fmuinfo import (
     CONTINUOUS,
     RECORDED,
     coupling_kind,
-    element_names,
-    lookup,
     recordable,
     recorded_as,
 )
@@ -28,29 +26,6 @@ from master.scenario.loops import cycle_in, strongly_connected
 from master.scenario.model import Iteration, ModelExchange, Scenario, Scheme, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
-
-
-@dataclass(frozen=True)
-class Capability:
-    """What the planner needs to know of one FMU besides its variables."""
-
-    can_interpolate_inputs: bool = False
-    fmi_version: str = "2.0"
-    can_get_set_state: bool = False
-    once_per_process: bool = False  # canBeInstantiatedOnlyOncePerProcess
-    needs_execution_tool: bool = False
-    # output -> the inputs it depends on directly (None: every output on every input)
-    dependencies: dict[str, frozenset[str]] | None = None
-    assumed: frozenset[str] = frozenset()  # outputs that declare no dependencies (fmu.output_dependencies)
-    directional_derivatives: bool = False  # providesDirectionalDerivative(s)
-    model_exchange: bool = False  # instantiated for Model Exchange (fmu.runs_as_model_exchange)
-    event_indicators: int = 0  # of a Model Exchange FMU: state events the master does not locate yet
-
-    def depends(self, output: str, inputs: dict[str, VariableInfo]) -> frozenset[str]:
-        """The inputs `output` depends on directly (no table: all of `inputs`)."""
-        if self.dependencies is None:
-            return frozenset(n for n, v in inputs.items() if v.causality == "input")
-        return self.dependencies.get(output, frozenset())
 
 
 @dataclass(frozen=True)
@@ -87,7 +62,7 @@ KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UIn
          "UInt64")  # fmt: skip
 
 
-def value_kind(v: VariableInfo, fmi_version: str) -> str | None:
+def value_kind(v: Variable, fmi_version: str) -> str | None:
     """The kind (`KINDS`, "String" or "Binary") of a variable's value as connections carry it."""
     return coupling_kind(v.fmi_type or v.type, fmi_version)
 
@@ -303,12 +278,12 @@ def coupling_error_column(source: str, output: str, consumer: str, input_: str) 
 
 def build_plan(
     sc: Scenario,
-    variables: dict[str, dict[str, VariableInfo]],
+    variables: dict[str, dict[str, Variable]],
     capabilities: dict[str, Capability] | None = None,
 ) -> Plan:
     """Schedule `sc`, a valid scenario (`master.scenario.check` finds no problem: the planner keeps
     no rule of its own). `variables[component]` are the variables of its FMU (FMI 3 arrays with
-    their shapes: links and the record name each element, `fmuinfo.element_names`)."""
+    their shapes: links and the record name each element, `description.element_names`)."""
     caps = {c.name: (capabilities or {}).get(c.name, Capability()) for c in sc.components}
     H = Fraction(sc.macro_step)
     steps = (Fraction(sc.stop_time) - Fraction(sc.start_time)) / H
@@ -388,7 +363,7 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
 
 def _links(
     sc: Scenario,
-    variables: dict[str, dict[str, VariableInfo]],
+    variables: dict[str, dict[str, Variable]],
     caps: dict[str, Capability],
     comps: dict[str, PlanComponent],
 ) -> list[Link]:
@@ -456,7 +431,7 @@ def _startup(
 
 def _loops(
     sc: Scenario,
-    variables: dict[str, dict[str, VariableInfo]],
+    variables: dict[str, dict[str, Variable]],
     caps: dict[str, Capability],
     links: list[Link],
     notes: list[str],
@@ -541,11 +516,11 @@ def _loops(
 
 
 def _recording(
-    sc: Scenario, variables: dict[str, dict[str, VariableInfo]], caps: dict[str, Capability], notes: list[str]
+    sc: Scenario, variables: dict[str, dict[str, Variable]], caps: dict[str, Capability], notes: list[str]
 ) -> tuple[tuple[tuple[str, str], ...], tuple[str, ...]]:
     """The recorded columns (an array a column per element) and how the results hold each."""
 
-    def can_record(comp: str, v: VariableInfo) -> bool:
+    def can_record(comp: str, v: Variable) -> bool:
         return recordable(v.fmi_type or v.type, caps[comp].fmi_version, v.shape)
 
     record = tuple(sc.record)

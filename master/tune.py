@@ -44,11 +44,12 @@ from fractions import Fraction
 from pathlib import Path
 
 from master.evidence import bench
-from master.evidence.bench import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, Config, Profile
+from master.evidence.bench import Config, Profile
 from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
 from master.scenario.model import Scenario, Scheme
 from master.scenario.names import split
+from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
 MANTISSAS = (
     1,

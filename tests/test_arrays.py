@@ -27,11 +27,11 @@ import pytest
 from helpers import run_everywhere
 
 import master.api as api
-from master.fmu import read_description, variables_of
+from master.description import element_names, lookup, split_element, variables_of
+from master.fmu import read_description
 from master.fmubuild import fmu_path
 from master.recorder import read_csv
 from master.scenario import ScenarioError, load, read, validate
-from master.scenario.fmuinfo import element_names, lookup, split_element
 from master.scenario.model import Component, Connection, Scenario, Stimulus
 
 SCENES = Path(__file__).parent / "scenarios"

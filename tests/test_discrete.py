@@ -15,6 +15,7 @@ import pytest
 import master.api as api
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
+from master.solvers import EULER
 
 H = Fraction(1, 50)
 
@@ -22,8 +23,8 @@ H = Fraction(1, 50)
 def ring(ratio_b: int = 1, coupling: str = "jacobi") -> Scenario:
     fmu = fmu_path("discrete")
     comps = (
-        Component("a", fmu, {"x": 0.7, "solver": 1}, 1, 2),  # order 2: must not reach discrete inputs
-        Component("b", fmu, {"x": 0.0, "solver": 1, "rate": 0.5}, ratio_b, 2),
+        Component("a", fmu, {"x": 0.7, "solver": EULER}, 1, 2),  # order 2: must not reach discrete inputs
+        Component("b", fmu, {"x": 0.0, "solver": EULER, "rate": 0.5}, ratio_b, 2),
     )
     conns = tuple(
         Connection(src, out, dst, inp)
@@ -110,7 +111,7 @@ def test_a_step_stimulus_drives_an_integer_input():
     from master.scenario.model import Stimulus
 
     sc = ring()
-    b = Component("b", sc.components[1].fmu_path, {"solver": 1, "rate": 0.5, "on_in": True}, 2, 2)
+    b = Component("b", sc.components[1].fmu_path, {"solver": EULER, "rate": 0.5, "on_in": True}, 2, 2)
     step = Stimulus("b", "n_in", "step", (0.5,), (3.0,))
     record = (("b", "x"), ("b", "n_in"))
     scene = Scenario(sc.path, sc.name, (b,), (), Fraction(0), Fraction(2), H, record=record, stimuli=(step,))

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from master.api import run
-from master.evidence.linear import AB3, EULER, largest_stable_step, spectral_radius
+from master.evidence.linear import largest_stable_step, spectral_radius
 from master.evidence.oscillator import SET_A, scene, split_scheme
 from master.evidence.stability import linearize, measured_limit
+from master.solvers import AB3, EULER
 
 CFG = dict(split="force", solvers=(AB3, EULER), step_ratios=(1, 10))
 

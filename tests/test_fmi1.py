@@ -17,7 +17,8 @@ from fmpy.fmi1 import FMICallException
 from lxml import etree
 
 from master import api
-from master.fmu import Fmu, feedthrough_outputs, parse, read_description, unsupported, variables_of
+from master.description import feedthrough_outputs, parse, unsupported, variables_of
+from master.fmu import Fmu, read_description
 from master.fmubuild import fmu_path
 from master.recorder import read_csv
 from master.scenario.fmuinfo import read as read_info

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from master import fmubuild
+from master import fmubuild, solvers
 
 
 @pytest.mark.parametrize("name", fmubuild.project_fmu_names())
@@ -100,9 +100,19 @@ def test_dependency_on_a_parameter_is_reported(sandbox: Path) -> None:
 
 
 def test_solver_descriptions_must_match_the_c_solvers(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(fmubuild, "SOLVER_ITEMS", fmubuild.SOLVER_ITEMS[:-1])
-    with pytest.raises(fmubuild.FmuBuildError, match="SOLVER_COUNT is 6 but fmubuild.py describes 5 solvers"):
+    monkeypatch.setattr(solvers, "SOLVERS", solvers.SOLVERS[:-1])
+    with pytest.raises(fmubuild.FmuBuildError, match="model.h: SolverKind is .* but master/solvers.py has 5"):
         fmubuild.describe("dahlquist")
+
+
+def test_the_c_solver_numbers_and_names_are_the_python_table() -> None:
+    header = (fmubuild.FMI_DIR / "model.h").read_text()
+    assert solvers.c_mismatch(header) is None
+    swapped = header.replace("SOLVER_AB2 = 2", "SOLVER_AB2 = 3").replace("SOLVER_AB3 = 3", "SOLVER_AB3 = 2")
+    assert "SOLVER_AB2 = 3" in (solvers.c_mismatch(swapped) or "")
+    renamed = header.replace("SOLVER_RK4", "SOLVER_RUNGE_KUTTA")
+    assert "SOLVER_RUNGE_KUTTA = 4" in (solvers.c_mismatch(renamed) or "")
+    assert solvers.c_mismatch("typedef int SolverKind;") == "no enumeration SolverKind"
 
 
 def test_layer_constants_come_from_c(sandbox: Path) -> None:

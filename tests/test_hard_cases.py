@@ -15,18 +15,11 @@ import pytest
 from master.api import run
 from master.backends.component import SimulationError
 from master.evidence.errors import as_trajectory, compare
-from master.evidence.linear import (
-    AB3,
-    EULER,
-    RK4,
-    SI_EULER,
-    SI_MIDPOINT,
-    largest_stable_step,
-    spectral_radius,
-)
+from master.evidence.linear import largest_stable_step, spectral_radius
 from master.evidence.oscillator import SET_A, TwoMass, scene, split_scheme
 from master.evidence.reference import reference
 from master.scenario.model import Stimulus
+from master.solvers import AB3, EULER, RK4, SI_EULER, SI_MIDPOINT
 
 # Mass 2 made stiff: eigenvalues -1 and -1000 1/s, so explicit Euler needs h < 2e-3 s there.
 STIFF = TwoMass(c2=1000.0, d2=1001.0)

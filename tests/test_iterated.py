@@ -330,7 +330,8 @@ def test_master_validate_names_at_mm_iteration_an_fmu_that_cannot_save_its_state
 def test_a_plan_built_past_the_checks_still_never_steps_an_fmu_without_state():
     """build_plan keeps no rule of its own; the kernel's tables refuse the FMU before any call."""
     from master.backends.in_process import InProcessBackend
-    from master.fmu import FmuError, read_description, variables_of
+    from master.description import variables_of
+    from master.fmu import FmuError, read_description
     from master.fmubuild import fmu_path
     from master.schedule import build_plan
 

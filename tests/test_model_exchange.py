@@ -22,15 +22,17 @@ from test_parallel import CAUSES, assert_no_children, lags
 
 import master.api as api
 from master.backends.component import SimulationError
+from master.description import variables_of
 from master.evidence.linear import AB3, EULER
 from master.evidence.oscillator import scene
 from master.evidence.stability import linearize
-from master.fmu import read_description, variables_of
-from master.fmubuild import SOLVER_ITEMS, fmu_path
+from master.fmu import read_description
+from master.fmubuild import fmu_path
 from master.runtime import native
 from master.scenario import ScenarioError
-from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario, Scheme
+from master.scenario.model import Component, Connection, ModelExchange, Scenario, Scheme
 from master.scenario.writer import write_settings
+from master.solvers import ITEMS, NUMBERS, RK4, SOLVERS
 
 ROOT = Path(__file__).resolve().parent.parent
 H = Fraction(1, 100)  # macro step, s
@@ -46,7 +48,7 @@ def oscillator(solver: str, model_exchange: bool) -> Scenario:
     mass1 = Component(
         "mass1",
         msd,
-        parameters={"solver": SOLVERS.index(solver) + 1, "internal_step": float(H / SUBSTEPS), "x0": 1.0},
+        parameters={"solver": NUMBERS[solver], "internal_step": float(H / SUBSTEPS), "x0": 1.0},
         extrapolation_order=2,
         interpolate_inputs=not model_exchange,
         model_exchange=me,
@@ -61,7 +63,7 @@ def oscillator(solver: str, model_exchange: bool) -> Scenario:
     return Scenario(path, "oscillator", (mass1, mass2), connections, Fraction(0), Fraction(2), H)
 
 
-@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("solver", NUMBERS)
 def test_model_exchange_equals_the_interpolating_co_simulation_fmu_in_every_backend(solver):
     """Same solver code, same input polynomials at the same stage times, same history across
     communication steps and start-up sweeps (saved with the FMU state): the same bits."""
@@ -155,7 +157,7 @@ def observed_order(error) -> float:
     return math.log2(error(1) / error(2))
 
 
-@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("solver", NUMBERS)
 def test_orders_on_the_test_equation(solver):
     """dahlquist, y' = -y, y(1) = exp(-1): the error at t = 1 falls as h^p."""
     p, h = ORDERS[solver]
@@ -167,7 +169,7 @@ def test_orders_on_the_test_equation(solver):
     assert abs(observed_order(error) - p) < 0.2
 
 
-@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("solver", NUMBERS)
 def test_orders_on_a_nonlinear_non_autonomous_system(solver):
     """nonlinear: r' = -a r^3, theta' = omega (1 + t) in Cartesian form (a full Jacobian, from the
     FMU's directional derivatives for the semi-implicit methods), closed-form solution."""
@@ -271,7 +273,7 @@ def lag(h: Fraction, order: int, model_exchange: bool = True) -> Scenario:
     with `order`, or as Co-Simulation (its RK4, same steps), which holds its inputs over a step."""
     src = Component("src", fmu_path("dahlquist"), parameters={"internal_step": float(h / 8)})
     me = ModelExchange("rk4", h / 8) if model_exchange else None
-    parameters = {} if model_exchange else {"solver": SOLVERS.index("rk4") + 1, "internal_step": float(h / 8)}
+    parameters = {} if model_exchange else {"solver": RK4, "internal_step": float(h / 8)}
     m = Component("lag", fmu_path("crashtest"), parameters, extrapolation_order=order, model_exchange=me)
     connections = (Connection("src", "y", "lag", "u"),)
     return Scenario(Path("lag.ssd"), "lag", (src, m), connections, Fraction(0), Fraction(1), h)
@@ -367,7 +369,7 @@ def as_model_exchange(comp: Component) -> Component:
     v = variables_of(read_description(comp.fmu_path))
     solver = int(comp.parameters.get("solver", v["solver"].start))
     h = Fraction(float(comp.parameters.get("internal_step", v["internal_step"].start)))
-    return dataclasses.replace(comp, model_exchange=ModelExchange(SOLVERS[solver - 1], h if h > 0 else None))
+    return dataclasses.replace(comp, model_exchange=ModelExchange(ITEMS[solver], h if h > 0 else None))
 
 
 @pytest.mark.parametrize("scene, stop", [("hydraulic-manipulator", "0.3"), ("dc-motor-arm", "2")])
@@ -400,10 +402,13 @@ def test_fmi3_model_exchange_equals_fmi2(solver):
 
 
 def test_one_table_of_solver_names():
-    """The methods by name (SOLVERS, numbered from 1 as model.h's SolverKind, whose count the kernel
+    """The methods by name (master.solvers, numbered as model.h's SolverKind, whose count the kernel
     library reports: native checks it) are the items of the project FMUs' Solver enumeration."""
     assert native.library() and native.CONSTANTS["SOLVER_COUNT"] == len(SOLVERS)
-    assert [name for name, _ in SOLVER_ITEMS] == list(SOLVERS)
+    for fmi in (2, 3):
+        types = read_description(fmu_path("msd", fmi=fmi)).typeDefinitions
+        solver = next(t for t in types if t.name == "Solver")
+        assert [(item.name, int(item.value)) for item in solver.items] == list(NUMBERS.items())
 
 
 @pytest.mark.parametrize("backend", ["serial", "parallel"])

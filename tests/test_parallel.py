@@ -29,6 +29,7 @@ from master.backends.workers import WorkerBackend, worker_groups
 from master.evidence.oscillator import scene
 from master.fmubuild import fmu_path
 from master.scenario.model import Component, Connection, Scenario
+from master.solvers import EULER, RK4
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -74,7 +75,7 @@ def lags(n=2, stop=Fraction(2), H=Fraction(1, 100), params=None, ratios=None, xo
     ratios = ratios or [1] * n
     comps = tuple(
         Component(
-            f"c{i}", ct, {"solver": 4, "y": float(i) - 0.5, **params.get(f"c{i}", {})}, ratios[i], xorder
+            f"c{i}", ct, {"solver": RK4, "y": float(i) - 0.5, **params.get(f"c{i}", {})}, ratios[i], xorder
         )
         for i in range(n)
     )
@@ -275,7 +276,7 @@ def test_a_worker_of_several_slow_components_is_not_a_hang():
     """The step timeout bounds one component's macro step, not a worker's: three components of
     0.4 s per step in one worker (1.2 s per macro step) under a 1 s timeout finish (each 0.6 s
     below it, room for a loaded machine)."""
-    slow = {f"c{i}": {"cost_us": 400_000, "solver": 1} for i in range(3)}
+    slow = {f"c{i}": {"cost_us": 400_000, "solver": EULER} for i in range(3)}
     r = api.run(lags(3, stop=Fraction(3, 100), params=slow), backend="serial", step_timeout=1.0)
     assert r.summary.macro_steps == 3
     assert_no_children()

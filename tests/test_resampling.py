@@ -60,7 +60,8 @@ def test_only_the_outputs_that_depend_on_inputs_are_read_again():
 
 
 def _variables(plan, name):
-    from master.fmu import read_description, variables_of
+    from master.description import variables_of
+    from master.fmu import read_description
 
     return variables_of(read_description(plan.scenario.component(name).fmu_path))
 

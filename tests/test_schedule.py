@@ -6,15 +6,14 @@ from pathlib import Path
 
 import pytest
 
-from master.fmu import VariableInfo
+from master.description import CO_SIMULATION, Capability, Description, Variable
 from master.scenario import check
-from master.scenario.fmuinfo import FmuInfo, Var
 from master.scenario.model import Component, Connection, Scenario, Stimulus
-from master.schedule import Capability, Clock, Link, build_plan
+from master.schedule import Clock, Link, build_plan
 
 
 def var(name, causality, type_="Real"):
-    return VariableInfo(name, 0, type_, causality, "continuous", None, None, None, None)
+    return Variable(name, 0, type_, causality, "continuous", None, None, None, None)
 
 
 VARS = {
@@ -25,11 +24,8 @@ VARS = {
 
 # the same FMUs as the scenario checks see them
 FMUS = {
-    c: FmuInfo(Path(f"{c}.fmu"), "2.0", {
-        n: Var(n, v.type, v.causality, v.variability, None, None, None, None, None) for n, v in vs.items()
-    }, {}, True, False)
-    for c, vs in VARS.items()
-}  # fmt: skip
+    c: Description(Path(f"{c}.fmu"), "2.0", vs, {}, {CO_SIMULATION: Capability()}) for c, vs in VARS.items()
+}
 
 
 def scene(**kw):

@@ -19,7 +19,8 @@ import pytest
 from helpers import third_party_scene
 
 import master.api as api
-from master.fmu import FmuError, defects, parse, read_description
+from master.description import defects, parse
+from master.fmu import FmuError, read_description
 from master.fmubuild import fmu_path
 from master.scenario import ScenarioError, load, validate
 from tests.helpers import ssd

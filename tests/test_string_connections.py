@@ -23,7 +23,8 @@ from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
 from master.backends.component import output_names
-from master.fmu import read_description, variables_of
+from master.description import variables_of
+from master.fmu import read_description
 from master.fmubuild import fmu_path
 from master.runtime import native
 from master.runtime.tables import layout

@@ -24,6 +24,7 @@ from master.evidence.oscillator import SET_A, SET_A_Z0
 from master.evidence.reference import reference
 from master.evidence.stability import linearize
 from master.scenario.writer import write_settings
+from master.solvers import SI_MIDPOINT
 from master.tune import CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -127,7 +128,7 @@ def test_the_writer_changes_only_the_settings_and_reads_back(tmp_path):
                 step_ratio=4,
                 extrapolation_order=1,
                 interpolate_inputs=False,
-                parameters={**mass2.parameters, "solver": 6},
+                parameters={**mass2.parameters, "solver": SI_MIDPOINT},
             ),  # fmt: skip
         ),
         connections=tuple(dataclasses.replace(c, extrapolation_order=None) for c in sc.connections),

@@ -56,7 +56,8 @@ typedef enum { I_DEFAULT, I_EXACT, I_APPROX, I_CALCULATED } Initial; /* I_DEFAUL
  * (FMI 2.0: fmi2Discard and fmi2Terminated; FMI 3.0: fmi3OK with *terminateSimulation = true). */
 typedef enum { MODEL_OK = 0, MODEL_ERROR = 1, MODEL_FATAL = 2, MODEL_TERMINATE = 3 } ModelStatus;
 
-/* Solvers of the shared core (values of the `solver` parameter). */
+/* Solvers of the shared core (values of the `solver` parameter): master/solvers.py names them,
+ * and master/fmubuild.py checks this enumeration against that table before every build. */
 typedef enum {
     SOLVER_EULER = 1,
     SOLVER_AB2 = 2,

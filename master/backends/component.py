@@ -5,8 +5,9 @@ Times are in seconds.
 
 from __future__ import annotations
 
+from master.description import element_names, lookup
 from master.fmu import Fmu
-from master.scenario.fmuinfo import TEXTS, element_names, lookup
+from master.scenario.fmuinfo import TEXTS
 from master.scenario.model import Component, Scenario
 from master.schedule import KINDS, Plan, value_kind
 

@@ -31,7 +31,8 @@ from master.backends.driver import signals_deferred
 from master.backends.in_process import initialize_sweeps
 from master.backends.janitor import Janitor
 from master.backends.worker import WorkerFailure, WorkerPool, cpu_count
-from master.fmu import Fmu, FmuError, read_description, variables_of
+from master.description import variables_of
+from master.fmu import Fmu, FmuError, read_description
 from master.recorder import Recorder
 from master.runtime import native
 from master.runtime.tables import (

@@ -38,9 +38,8 @@ from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
 from master.scenario.model import Iteration, Scenario, Scheme
+from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
-EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
-SOLVER_NAMES = {1: "euler", 2: "ab2", 3: "ab3", 4: "rk4", 5: "si-euler", 6: "si-midpoint"}
 GENERIC_FAMILIES = ("scene", "macro-step", "order", "coupling", "backend")  # sweeps of generic_profile
 
 

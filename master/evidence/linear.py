@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT = 1, 2, 3, 4, 5, 6
+from master.solvers import AB2, AB3, EULER, RK4, SI_EULER, SI_MIDPOINT
 
 
 @dataclass(frozen=True)

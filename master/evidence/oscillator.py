@@ -14,6 +14,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from master.scenario.model import Scheme
+from master.solvers import RK4
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ SET_A_V1_10 = -2.6931070586924e-3
 def split_scheme(
     p: TwoMass = SET_A,
     order: int = 0,
-    solvers: tuple[int, int] = (4, 4),
+    solvers: tuple[int, int] = (RK4, RK4),
     step_ratios: tuple[int, int] = (1, 1),
     substeps: tuple[int, int] = (1, 1),
     inputs: str | tuple[str, str] = "hold",
@@ -124,7 +125,7 @@ def scene(
     macro_step: Fraction = Fraction(1, 100),
     stop_time: Fraction = Fraction(10),
     order: int = 0,
-    solvers: tuple[int, int] = (4, 4),
+    solvers: tuple[int, int] = (RK4, RK4),
     step_ratios: tuple[int, int] = (1, 1),
     z0: np.ndarray = SET_A_Z0,
     path: Path | None = None,

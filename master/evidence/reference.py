@@ -33,8 +33,9 @@ from fmpy.fmi2 import FMU2Model
 from scipy.integrate import solve_ivp
 
 from master.coupling import stimulus_value
+from master.description import feedthrough_outputs, parse
 from master.evidence.errors import Trajectory, as_trajectory, compare
-from master.fmu import feedthrough_outputs, parse, safe_extract
+from master.fmu import safe_extract
 from master.scenario.model import Scenario, Stimulus
 
 log = logging.getLogger("master")

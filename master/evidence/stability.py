@@ -20,8 +20,9 @@ from scipy.integrate import solve_ivp
 from master.evidence.linear import LinearComponent, LinearScheme
 from master.evidence.reference import _DOUBLE_P, _Scene, break_points
 from master.recorder import signal_columns
-from master.scenario.model import SOLVERS, Scenario, Scheme
+from master.scenario.model import Scenario, Scheme
 from master.schedule import stepping_order
+from master.solvers import NUMBERS
 
 
 def state_at(scene: _Scene, scenario: Scenario, t: float, rtol: float = 1e-8) -> np.ndarray:
@@ -123,7 +124,7 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
             mode = "polynomial" if pc.interpolate_inputs else "hold"
             if pc.model_exchange:  # the master integrates it: its method, its steps, inputs at every stage
                 me = pc.model_exchange
-                solver, substeps, mode = SOLVERS.index(me.solver) + 1, me.substeps(pc.step) or 1, "polynomial"
+                solver, substeps, mode = NUMBERS[me.solver], me.substeps(pc.step) or 1, "polynomial"
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
                                          step_ratio=pc.step_ratio, substeps=substeps, order=k_in,
                                          input_mode=mode))  # fmt: skip

@@ -452,7 +452,7 @@ typedef struct {
 void mk_layout(int64_t *sizes);
 /* Constants the ctypes mirror and the tables share: MK_KINDS, MK_COUPLING_ERROR, MK_ERROR_FIELDS,
  * MK_STRING_SLOT, MK_TEXT_MAX, MK_TRANSFORM_NONE, MK_TRANSFORM_LINEAR, MK_TRANSFORM_MAP, the loops',
- * SOLVER_COUNT (the Model Exchange components' methods, master.scenario.model.SOLVERS). */
+ * SOLVER_COUNT (the Model Exchange components' methods, master.solvers.SOLVERS). */
 void mk_constants(int64_t *values);
 /* Initial sweep of component c (initialisation mode): inputs from the sources' sample 0, own
  * outputs into sample 0. Returns an mk code. */

@@ -17,8 +17,9 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from master.scenario.model import LOOP_METHODS, SOLVERS, TRANSFORMATIONS
+from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS
 from master.schedule import EDGE_ASSUMED
+from master.solvers import SOLVERS
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
@@ -52,7 +53,7 @@ INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for Solver
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
-    "set_input_derivatives",
+    "set_derivatives",
     "do_step",
     "get_real",
     "get_state",
@@ -104,7 +105,7 @@ CONSTANTS = {
     **{f"MK_LOOP_{m.upper().replace('-', '_')}": code for code, m in enumerate(LOOP_METHODS)},
     "MK_EDGE_ASSUMED": EDGE_ASSUMED,
     "MK_LOOP_STATS": 8,
-    # the shared solvers' methods (fmus/fmi/model.h SolverKind 1..SOLVER_COUNT), by name in SOLVERS
+    # the shared solvers' methods (fmus/fmi/model.h SolverKind 1..SOLVER_COUNT), master.solvers.SOLVERS
     "SOLVER_COUNT": len(SOLVERS),
 }
 # a loop's counters (kernel.h mk_loop.stats), in their order

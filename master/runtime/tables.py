@@ -26,10 +26,11 @@ from master.backends.component import (
     string_output_names,
 )
 from master.coupling import weights
+from master.description import FMI_FUNCTIONS, lookup
 from master.fmu import Fmu, FmuError
 from master.runtime import native
-from master.scenario.fmuinfo import CONTINUOUS, TEXTS, lookup, recorded_as
-from master.scenario.model import LOOP_METHODS, SOLVERS, TRANSFORMATIONS, ModelExchange
+from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
+from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS, ModelExchange
 from master.schedule import (
     EDGE_ASSUMED,
     KINDS,
@@ -41,6 +42,7 @@ from master.schedule import (
     connection_name,
     value_kind,
 )
+from master.solvers import NUMBERS
 
 ROW_CAPACITY = 4096  # rows of the results ring
 ALIGN = 64  # bytes: arrays start on their own cache line
@@ -48,33 +50,6 @@ SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking 
 
 Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
 
-# kernel slot -> its function in FMI 1.0 (Co-Simulation; exported as <modelIdentifier>_<name>), 2 and 3;
-# None: not used with that version. FMI 1 cannot save its state and has no fmi2Terminated status.
-FMI_FUNCTIONS = {
-    "do_step": ("fmiDoStep", "fmi2DoStep", "fmi3DoStep"),
-    "set_real": ("fmiSetReal", "fmi2SetReal", "fmi3SetFloat64"),
-    "get_real": ("fmiGetReal", "fmi2GetReal", "fmi3GetFloat64"),
-    "set_derivatives": ("fmiSetRealInputDerivatives", "fmi2SetRealInputDerivatives", None),
-    "get_integer": ("fmiGetInteger", "fmi2GetInteger", "fmi3GetInt32"),
-    "get_boolean": ("fmiGetBoolean", "fmi2GetBoolean", "fmi3GetBoolean"),
-    "set_integer": ("fmiSetInteger", "fmi2SetInteger", "fmi3SetInt32"),
-    "set_boolean": ("fmiSetBoolean", "fmi2SetBoolean", "fmi3SetBoolean"),
-    "get_state": (None, "fmi2GetFMUstate", "fmi3GetFMUState"),
-    "set_state": (None, "fmi2SetFMUstate", "fmi3SetFMUState"),
-    "free_state": (None, "fmi2FreeFMUstate", "fmi3FreeFMUState"),
-    "get_boolean_status": (None, "fmi2GetBooleanStatus", None),  # fmi2Terminated after fmi2Discard
-    "get_string": ("fmiGetString", "fmi2GetString", "fmi3GetString"),  # String connections and records only
-    "set_string": ("fmiSetString", "fmi2SetString", "fmi3SetString"),
-    "get_binary": (None, None, "fmi3GetBinary"),  # Binary connections and records only
-    "set_binary": (None, None, "fmi3SetBinary"),
-    "get_directional_derivative": (None, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative"),
-    # Model Exchange components, integrated by the kernel (kernel.h: mk_component.me)
-    "set_time": (None, "fmi2SetTime", "fmi3SetTime"),
-    "set_states": (None, "fmi2SetContinuousStates", "fmi3SetContinuousStates"),
-    "get_states": (None, "fmi2GetContinuousStates", "fmi3GetContinuousStates"),
-    "get_derivatives": (None, "fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
-    "completed_step": (None, "fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"),
-}
 ME_CALLS = ("set_time", "set_states", "get_states", "get_derivatives", "completed_step")
 
 
@@ -471,7 +446,7 @@ class CompiledPlan:
         if c.n_in_calls and c.n_in_real:
             raise FmuError(f"{pc.name}: a Model Exchange component with FMI 3 array inputs is not supported")
         c.me = 1
-        c.me_solver = SOLVERS.index(me.solver) + 1
+        c.me_solver = NUMBERS[me.solver]
         k = me.substeps(pc.step)
         if k is None:  # checked with the scenario (master.scenario.check)
             raise FmuError(f"{pc.name}: internal step {me.internal_step} s does not divide {pc.step} s")
@@ -876,8 +851,8 @@ def _binaries(plan: Plan, name: str) -> set[str]:
 
 
 def variable(fmu: Fmu, name: str):
-    """The variable (master.fmu.VariableInfo) of a history column or input slot: a variable's
-    name, or an element y[i,j] of an FMI 3 array y (master.scenario.fmuinfo.element_names)."""
+    """The variable (master.description.Variable) of a history column or input slot: a variable's
+    name, or an element y[i,j] of an FMI 3 array y (master.description.element_names)."""
     return lookup(fmu.variables, name)[0]
 
 
@@ -1011,7 +986,8 @@ def resampling(plan: Plan, outs: dict[str, list[str]]) -> tuple[dict[str, list[s
     sample before that source was resampled, or, in start-up sweeps, the previous sweep's; where
     they were final already, reading again changes nothing. An algebraic loop (Plan.loops) is one
     entry of the order, its index (its members solved together), a component's is its name."""
-    from master.fmu import feedthrough_outputs, read_description, variables_of
+    from master.description import feedthrough_outputs, variables_of
+    from master.fmu import read_description
 
     through: dict[str, list[str]] = {}
     for pc in plan.components:

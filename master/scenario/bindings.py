@@ -27,9 +27,11 @@ from typing import NamedTuple
 
 from lxml import etree
 
+from master.description import FLOATS, Description, Variable, lookup
+
 from . import transforms, xmlio
 from .context import Context
-from .fmuinfo import FLOATS, FmuInfo, SourceError, Var, file_at, lookup, no_element
+from .fmuinfo import SourceError, file_at, no_element
 from .model import Value
 from .problems import NS_SSC, NS_SSD, NS_SSM, NS_SSV, Problems
 from .systems import Flat, Scope, resolve
@@ -309,7 +311,7 @@ def _apply(ctx: Context, params: dict[str, dict[str, Value]], entry: Entry) -> N
         ctx.problems.at(shown, param, f"{comp}.{name}: {err}")
 
 
-def _mapped(ctx: Context, entry: Entry, var: Var, fmi_version: str) -> Value | None:
+def _mapped(ctx: Context, entry: Entry, var: Variable, fmi_version: str) -> Value | None:
     """The value of `entry` (given its name by ssm:MappingEntry `entry.via`) for variable `var`:
     the entry's transformation (ssc:LinearTransformation or a mapping transformation, read as a
     connection's: `transforms.read`) applied, after converting the value's unit to the variable's
@@ -343,11 +345,11 @@ def _mapped(ctx: Context, entry: Entry, var: Var, fmi_version: str) -> Value | N
     if var.kind in FLOATS:
         return from_string(var, repr(result))
     if result != int(result):  # a unit conversion towards an integer variable
-        raise BadValue(f"{result!r} is not an integer ({var.name} is {var.type})")
+        raise BadValue(f"{result!r} is not an integer ({var.name} is {var.fmi_type})")
     return from_string(var, str(int(result)))
 
 
-def _source_var(entry: Entry, mapping: etree._Element) -> Var | None:
+def _source_var(entry: Entry, mapping: etree._Element) -> Variable | None:
     """A variable standing for the value's side of a mapping entry (its ssv type and unit; an
     enumeration's items are the source names of the entry's ssc:MapEntry elements)."""
     ssv_type = etree.QName(entry.value).localname
@@ -359,10 +361,11 @@ def _source_var(entry: Entry, mapping: etree._Element) -> Var | None:
         items = tuple((n, i) for i, n in enumerate(dict.fromkeys(names)))
     name = entry.value.getparent().get("name", "")
     unit = entry.value.get("unit")
-    return Var(name, ssv_type, "parameter", "fixed", None, unit, None, None, None, items)
+    # not the FMU's: no value reference
+    return Variable(name, -1, ssv_type, "parameter", "fixed", None, None, unit, None, items=items)
 
 
-def _number(source: Var, ssv_type: str, text: str) -> float:
+def _number(source: Variable, ssv_type: str, text: str) -> float:
     """The number a schema-valid ssv value stands for, as a transformation reads it."""
     if ssv_type == "Boolean":
         return 1.0 if text.strip() in ("true", "1") else 0.0
@@ -409,7 +412,7 @@ def _override(
         ctx.problems.add(*where, str(err))
 
 
-def _sizes(info: FmuInfo, name: str) -> str | None:
+def _sizes(info: Description, name: str) -> str | None:
     """Why `name` cannot be set if it is a structural parameter that sizes FMI 3 arrays: the
     master takes every array's size from the model description (its start), which a value set
     here would change (configuration mode is not supported)."""

@@ -13,19 +13,17 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
+from master.description import Description, Variable, lookup, typed
+
 from . import fmuinfo, transforms
 from .fmuinfo import (
-    FmuInfo,
     SourceError,
-    Var,
     connection_problem,
     direction_problems,
-    lookup,
     no_element,
     point_problem,
     record_problem,
     stimulus_problem,
-    typed,
 )
 from .model import LOOP_METHODS, Scenario, Scheme
 from .problems import Problem, Problems
@@ -43,10 +41,10 @@ COUPLINGS = tuple(Scheme)
 STIMULUS_KINDS = ("step", "table")
 
 At = Callable[[str, str], None]  # at(element, message): report one problem
-Infos = Mapping[str, FmuInfo | None]  # component -> its FMU (None: unreadable, reported once)
+Infos = Mapping[str, Description | None]  # component -> its FMU (None: unreadable, reported once)
 
 
-def check(sc: Scenario, fmus: Mapping[str, FmuInfo] | None = None) -> list[Problem]:
+def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[Problem]:
     """Every problem of `sc` at once (empty: the planner can schedule it). fmus: component name ->
     its FMU as the checks see it; None reads each component's `fmu_path` (an unreadable FMU is a
     problem of its component)."""
@@ -81,8 +79,8 @@ def times(sc: Scenario) -> list[Problem]:
     return problems.items
 
 
-def _read(sc: Scenario, at: At) -> dict[str, FmuInfo | None]:
-    infos: dict[str, FmuInfo | None] = {}
+def _read(sc: Scenario, at: At) -> dict[str, Description | None]:
+    infos: dict[str, Description | None] = {}
     for c in sc.components:
         try:
             info = fmuinfo.read(c.fmu_path)
@@ -171,7 +169,7 @@ def _order_ok(order: object) -> bool:
     return _whole(order) and 0 <= order <= MAX_ORDER
 
 
-def _variable(infos: Infos, comp: str, name: str, at: At, where: str) -> Var | None:
+def _variable(infos: Infos, comp: str, name: str, at: At, where: str) -> Variable | None:
     """The FMU variable `comp`.`name`, or None after reporting an unknown component or variable
     (silent where the component's FMU could not be read: that is reported once)."""
     if comp not in infos:
@@ -204,8 +202,8 @@ def _connections(sc: Scenario, infos: Infos, at: At) -> dict[tuple[str, str], st
         if wrong_way:
             continue
         problem = connection_problem(
-            f"{se}.{sc_}", out.type, infos[se].fmi_version, f"{ee}.{ec}", inp.type, infos[ee].fmi_version,
-            out.shape, inp.shape,
+            f"{se}.{sc_}", out.fmi_type, infos[se].fmi_version,
+            f"{ee}.{ec}", inp.fmi_type, infos[ee].fmi_version, out.shape, inp.shape,
         )  # fmt: skip
         ends = (f"{se}.{sc_}", f"{ee}.{ec}")
         t = cn.transformation
@@ -249,9 +247,9 @@ def _stimuli(sc: Scenario, infos: Infos, driven: dict[tuple[str, str], str], at:
             at(where, f"{name} is driven by {driven[key]}: stimuli are for undriven inputs")
         driven[key] = where
         version = infos[s.component].fmi_version
-        problem = stimulus_problem(var.type, version, s.kind, var.shape)
+        problem = stimulus_problem(var.fmi_type, version, s.kind, var.shape)
         if problem:
-            at(where, f"{name} is {typed(var.type, var.shape)}: {problem}")
+            at(where, f"{name} is {typed(var.fmi_type, var.shape)}: {problem}")
             continue
         for t, v in zip(s.times, s.values, strict=False):
             problem = point_problem(name, var, version, t, v) if math.isfinite(v) else None

@@ -7,8 +7,10 @@ from pathlib import Path
 
 from lxml import etree
 
+from master.description import Description, Variable, lookup
+
 from . import names
-from .fmuinfo import FmuInfo, Var, lookup, no_element
+from .fmuinfo import no_element
 from .problems import Problems
 
 
@@ -18,7 +20,7 @@ class Comp:
 
     name: str
     elem: etree._Element
-    info: FmuInfo | None
+    info: Description | None
     connectors: dict[str, etree._Element] = field(default_factory=dict)
 
 
@@ -39,7 +41,7 @@ class Context:
         """A problem at an element of the .ssd."""
         self.problems.at(self.shown, elem, message)
 
-    def variable(self, comp: str, name: str, elem: etree._Element, what: str = "variable") -> Var | None:
+    def variable(self, comp: str, name: str, elem: etree._Element, what: str = "variable") -> Variable | None:
         """The FMU variable `comp`.`name`, or None after reporting an unknown component or variable.
 
         Silent (None) if the component exists but its FMU could not be read: that is reported once."""
@@ -54,7 +56,7 @@ class Context:
             self.at(elem, f'unknown {what}: the FMU of {comp} ({c.info.path.name}) has no variable "{name}"')
         return var
 
-    def element(self, comp: str, name: str, elem: etree._Element) -> tuple[Var, int | None] | None:
+    def element(self, comp: str, name: str, elem: etree._Element) -> tuple[Variable, int | None] | None:
         """As `variable`, where `name` may also be one element y[i,j] of an FMI 3 array y:
         (variable, its position among the array's values; None for the variable itself)."""
         c = self.comps.get(comp)

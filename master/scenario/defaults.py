@@ -119,7 +119,7 @@ def _component_step(ctx: Context, name: str) -> tuple[Fraction, str] | None:
 
 def fmu_step(path) -> str | None:
     """The DefaultExperiment stepSize an FMU's model description gives, as written."""
-    from master.fmu import parse
+    from master.description import parse
 
     try:
         experiment = parse(path).defaultExperiment

@@ -1,27 +1,29 @@
-"""What the checks need to know about an FMU, read from its modelDescription.xml.
-
-FMI 1.0, 2.0 and 3.0 are all read by fmpy; their type names differ (Real vs Float64,
-Integer vs Int32), so types are compared through `type_class`.
+"""What the checks need to know about an FMU: the FMU a component's source names, and what its
+variables may be connected to, stimulated with and recorded as. The FMU's description itself
+(variables, types, capabilities) is master.description's, read once per file.
 """
 
 from __future__ import annotations
 
-import functools
-import itertools
 import math
-import re
-import zipfile
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-PROJECT_SCHEME = "project:"
+from master import description
+from master.description import (
+    FLOAT32_MAX,
+    INT_RANGES,
+    Description,
+    Variable,
+    element_names,
+    lookup,
+    split_element,
+    type_class,
+    typed,
+)
 
-# FMI 2 names -> their FMI 3 equivalents, so both versions compare alike.
-_SAME_TYPE = {"Real": "Float64", "Integer": "Int32"}
-NUMERIC = {"Float64", "Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
-FLOATS = {"Float64", "Float32"}
+PROJECT_SCHEME = "project:"
 
 
 # What a connection of each FMI type carries: the runtime's value kinds (kernel.h). FMI 2 Real and
@@ -44,17 +46,6 @@ CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the ot
 TEXTS = ("String", "Binary")  # the kinds carried as bytes, not as numbers: never stimulated
 CONNECTABLE = "numeric, Boolean, Enumeration, String and Binary signals"
 STIMULATED = "numeric, Boolean and Enumeration"
-INT_RANGES = {
-    "Int8": (-(2**7), 2**7 - 1),
-    "UInt8": (0, 2**8 - 1),
-    "Int16": (-(2**15), 2**15 - 1),
-    "UInt16": (0, 2**16 - 1),
-    "Int32": (-(2**31), 2**31 - 1),
-    "UInt32": (0, 2**32 - 1),
-    "Int64": (-(2**63), 2**63 - 1),
-    "UInt64": (0, 2**64 - 1),
-}
-FLOAT32_MAX = 3.4028234663852886e38
 
 
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
@@ -121,63 +112,6 @@ def connection_problem(
     return None
 
 
-def typed(fmi_type: str, shape: tuple[int, ...] = (), scalar: bool = False) -> str:
-    """A variable's type with its dimensions: "Float64[3]", "Float64[2,2]"; a scalar's type alone
-    ("Float64", with `scalar` "a scalar Float64")."""
-    if shape:
-        return f"{fmi_type}[{','.join(str(n) for n in shape)}]"
-    return f"a scalar {fmi_type}" if scalar else fmi_type
-
-
-# -- FMI 3 arrays ---------------------------------------------------------------------------------
-# An array is one variable (one value reference, its elements in a row in row-major order: the
-# last index varies fastest). Its elements are named as FMI's structured names write them,
-# indices from 1: y[1], y[2], y[3]; m[1,1], m[1,2], m[2,1], m[2,2]. Results have a column per
-# element under that name; mm:Record and parameter bindings may name one element.
-_ELEMENT = re.compile(r"^(.+)\[([0-9]+(?:,[0-9]+)*)\]$")
-
-
-def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
-    """The names of an array's elements in row-major order; [name] for a scalar (shape ())."""
-    if not shape:
-        return [name]
-    ranges = (range(1, n + 1) for n in shape)
-    return [f"{name}[{','.join(str(i) for i in index)}]" for index in itertools.product(*ranges)]
-
-
-def split_element(name: str) -> tuple[str, tuple[int, ...]] | None:
-    """ "m[2,1]" -> ("m", (2, 1)); None if `name` does not end in indices written as
-    `element_names` writes them (no spaces, no leading zeros)."""
-    m = _ELEMENT.match(name)
-    if m is None:
-        return None
-    index = tuple(int(i) for i in m.group(2).split(","))
-    return (m.group(1), index) if m.group(2) == ",".join(str(i) for i in index) else None
-
-
-def lookup(variables: Mapping[str, Any], name: str) -> tuple[Any, int | None] | None:
-    """(variable, position) of what `name` names among `variables` (anything with `.shape`): a
-    variable itself (position None), or one element y[i,j] of an array y (position: its index
-    among y's values, row major). A variable of that exact name wins (FMI 2 FMUs name scalars
-    "x[1]"). None if it names neither."""
-    v = variables.get(name)
-    if v is not None:
-        return v, None
-    split = split_element(name)
-    if split is None:
-        return None
-    base, index = split
-    v = variables.get(base)
-    if v is None or len(index) != len(v.shape):
-        return None
-    if not all(1 <= i <= n for i, n in zip(index, v.shape, strict=True)):
-        return None
-    position = 0
-    for i, n in zip(index, v.shape, strict=True):
-        position = position * n + i - 1
-    return v, position
-
-
 def no_element(variables: Mapping[str, Any], name: str) -> str | None:
     """Why `name`, written as an element y[...] of an array y of `variables`, names none of its
     elements ("y is Float64[3]: it has no element y[4]"); None if it does not look like one."""
@@ -186,14 +120,14 @@ def no_element(variables: Mapping[str, Any], name: str) -> str | None:
     if v is None or lookup(variables, name) is not None:
         return None
     if not v.shape:
-        return f"{split[0]} is {typed(v.type, ())}, not an array"
-    return f"{split[0]} is {typed(v.type, v.shape)}: it has no element {name}"
+        return f"{split[0]} is {typed(v.fmi_type, ())}, not an array"
+    return f"{split[0]} is {typed(v.fmi_type, v.shape)}: it has no element {name}"
 
 
-def iteration_problem(info: FmuInfo) -> str | None:
+def iteration_problem(info: Description) -> str | None:
     """Why iterated macro steps cannot run this FMU (they repeat each macro step from its saved
     state); None if they can."""
-    if info.can_get_set_state:
+    if info.co_simulation is not None and info.co_simulation.can_get_set_state:
         return None
     return (f"iterated macro steps (mm:Iteration) repeat each macro step from saved FMU states, but "
             f"{info.path.name} cannot save its state (canGetAndSetFMUstate false)")  # fmt: skip
@@ -231,14 +165,14 @@ def stimulus_value_problem(fmi_type: str, fmi_version: str, value: float) -> str
     return None if low <= value <= high else f"outside [{low}, {high}]"
 
 
-def point_problem(name: str, var: Var, fmi_version: str, t: float, v: float) -> str | None:
+def point_problem(name: str, var: Variable, fmi_version: str, t: float, v: float) -> str | None:
     """Why a stimulus cannot hold value v from time t (s) on input `name` (variable `var`): not of
     its type (`stimulus_value_problem`), or outside the range it declares, which the FMU would
     refuse in the run; None if it can."""
-    wrong = stimulus_value_problem(var.type, fmi_version, v)
+    wrong = stimulus_value_problem(var.fmi_type, fmi_version, v)
     if wrong:
-        return f"value {v:g} is {wrong} ({name} is {var.type})"
-    outside = range_problem(v, declared_range(var.type, var.min, var.max, var.items))
+        return f"value {v:g} is {wrong} ({name} is {var.fmi_type})"
+    outside = range_problem(v, declared_range(var.fmi_type, var.min, var.max, var.items))
     if outside:
         whose = "its items" if var.min is None and var.max is None else "its min and max"
         return f"value {v:g} at time {t:g} s is {outside}, the range of {name} ({whose})"
@@ -296,14 +230,14 @@ def recordable(fmi_type: str, fmi_version: str, shape: tuple[int, ...] = ()) -> 
 
 
 def record_problem(
-    comp: str, name: str, var: Var, position: int | None, fmi_version: str, columns: set[tuple[str, str]]
+    comp: str, name: str, var: Variable, position: int | None, fmi_version: str, columns: set[tuple[str, str]]
 ) -> str | None:
     """Why `comp`.`name` (variable `var`, or its element at `position`) cannot be recorded beside
     the `columns` (component, variable or array element) recorded so far, which it joins if it
     can; None then."""
     names = element_names(var.name, var.shape) if position is None else [name]
-    if not recordable(var.type, fmi_version, var.shape):
-        return f"{comp}.{name} is {var.type}: the runtime records {RECORDED}"
+    if not recordable(var.fmi_type, fmi_version, var.shape):
+        return f"{comp}.{name} is {var.fmi_type}: the runtime records {RECORDED}"
     if columns & {(comp, n) for n in names}:
         return "recorded twice"
     columns.update((comp, n) for n in names)
@@ -316,51 +250,6 @@ def recorded_as(fmi_type: str) -> str:
     (text) or "Binary" (bytes; hex digits in a CSV file)."""
     held = {"Int64": "int64", "UInt64": "uint64", "String": "String", "Binary": "Binary"}
     return held.get(fmi_type, "float64")
-
-
-def type_class(fmi_type: str) -> str:
-    """The FMI 3 name of a variable type ('Real' -> 'Float64')."""
-    return _SAME_TYPE.get(fmi_type, fmi_type)
-
-
-@dataclass(frozen=True)
-class Var:
-    """One model variable, as the checks see it."""
-
-    name: str
-    type: str  # as the FMU spells it: Real, Float64, Integer, Boolean, Enumeration, ...
-    causality: str  # parameter, calculatedParameter, structuralParameter, input, output, local, independent
-    variability: str
-    initial: str | None
-    unit: str | None
-    start: str | None
-    min: str | None
-    max: str | None
-    items: tuple[tuple[str, int], ...] = ()  # Enumeration items (name, value)
-    shape: tuple[int, ...] = ()  # FMI 3 array: its dimensions (start sizes); () for a scalar
-
-    @property
-    def kind(self) -> str:
-        """Version independent type name: Float64, Int32, Boolean, String, Enumeration, ..."""
-        return type_class(self.type)
-
-
-@dataclass(frozen=True)
-class FmuInfo:
-    path: Path
-    fmi_version: str
-    variables: dict[str, Var]
-    feedthrough: dict[str, frozenset[str]]  # output name -> inputs it depends on directly
-    co_simulation: bool
-    can_interpolate_inputs: bool
-    can_get_set_state: bool = False  # canGetAndSetFMUstate (FMI 3: canGetAndSetFMUState)
-    # structural parameters that give an array its size -> the arrays they size
-    sizes: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    # why the master cannot run this FMU (master.fmu.unsupported: FMI version, interface); None if it can
-    unsupported: str | None = None
-    # what fmpy's strict validation finds wrong with a description read all the same (master.fmu.defects)
-    defects: tuple[str, ...] = ()
-    model_exchange: bool = False  # a Model Exchange 2.0 or 3.0 interface the master can integrate
 
 
 def project_fmu_names() -> list[str]:
@@ -435,102 +324,11 @@ def _build(name: str) -> Path | SourceError:
         return SourceError(f'cannot build project FMU "{name}": {err}')
 
 
-def read(path: Path) -> FmuInfo:
-    """Read an FMU's model description (cached while the file is unchanged).
+def read(path: Path) -> Description:
+    """An FMU's model description (master.description.read: cached while the file is unchanged).
 
-    Raises SourceError with fmpy's reason if the FMU cannot be read."""
-    st = path.stat()
-    return _read(path.resolve(), st.st_mtime_ns, st.st_size)
-
-
-@functools.lru_cache(maxsize=64)
-def _read(path: Path, _mtime_ns: int, _size: int) -> FmuInfo:
-    from master.fmu import defects, parse, unsupported
-
-    from .archive import damaged
-
-    why = damaged(path)
-    if why:
-        raise SourceError(f"{path.name}: {why}")
+    Raises SourceError with the reason if the FMU cannot be read."""
     try:
-        md = parse(path)
-    except Exception as err:  # fmpy raises plain Exceptions for invalid descriptions
-        why = unsized_array(path) or err
-        raise SourceError(f"cannot read the modelDescription.xml of {path.name}: {why}") from err
-    variables: dict[str, Var] = {}
-    sizes: dict[str, list[str]] = {}
-    for v in md.modelVariables:
-        declared = v.declaredType
-        items = tuple((i.name, int(i.value)) for i in declared.items) if declared is not None else ()
-        variables[v.name] = Var(
-            name=v.name,
-            type=v.type,
-            causality=v.causality or "local",
-            variability=v.variability or "continuous",
-            initial=v.initial,
-            unit=v.unit or (declared.unit if declared is not None else None),
-            start=v.start,
-            min=v.min if v.min is not None else (declared.min if declared is not None else None),
-            max=v.max if v.max is not None else (declared.max if declared is not None else None),
-            items=items,
-            shape=tuple(int(n) for n in getattr(v, "shape", ()) or ()),
-        )
-        for d in v.dimensions or ():
-            if d.start is None and d.variable is not None:
-                sizes.setdefault(d.variable.name, []).append(v.name)
-    inputs = frozenset(n for n, v in variables.items() if v.causality == "input")
-    feedthrough: dict[str, frozenset[str]] = {
-        n: inputs for n, v in variables.items() if v.causality == "output"
-    }
-    for unknown in md.outputs:
-        if unknown.variable is None or unknown.dependencies is None:
-            continue  # no dependencies attribute: depends on all inputs (kept from above)
-        feedthrough[unknown.variable.name] = frozenset(d.name for d in unknown.dependencies) & inputs
-    cs = md.coSimulation
-    return FmuInfo(
-        path=path,
-        fmi_version=md.fmiVersion,
-        variables=variables,
-        feedthrough=feedthrough,
-        co_simulation=cs is not None,
-        can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
-        can_get_set_state=bool(cs is not None and cs.canGetAndSetFMUstate),
-        sizes={k: tuple(v) for k, v in sizes.items()},
-        unsupported=unsupported(md, path),
-        defects=defects(path),
-        model_exchange=md.modelExchange is not None and md.fmiVersion != "1.0",
-    )
-
-
-def unsized_array(path: Path) -> str | None:
-    """Why the size of an FMI 3 array of the FMU at `path` cannot be known before the run (a
-    dimension that names no variable, or one without a start value); None if every array has
-    its size (or the description cannot be read at all: fmpy says why)."""
-    from lxml import etree
-
-    try:
-        with zipfile.ZipFile(path) as zf:
-            root = etree.fromstring(zf.read("modelDescription.xml"))
-    except Exception:
-        return None
-    variables = root.find("ModelVariables")
-    if variables is None:
-        return None
-    by_vr = {e.get("valueReference"): e for e in variables if isinstance(e.tag, str)}
-    for e in variables:
-        for d in e.findall("Dimension") if isinstance(e.tag, str) else ():
-            if d.get("start") is not None:
-                continue
-            size = by_vr.get(d.get("valueReference"))
-            if size is None:
-                return (
-                    f"the size of array {e.get('name')} is variable {d.get('valueReference')}, "
-                    "which the model description does not declare"
-                )
-            start = size.get("start")
-            if start is None or not start.strip().isdigit():
-                return (
-                    f"the size of array {e.get('name')} is {size.get('name')}, which has no start value: "
-                    "its size cannot be known before the run"
-                )
-    return None
+        return description.read(path)
+    except description.DescriptionError as err:
+        raise SourceError(str(err)) from err

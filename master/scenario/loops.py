@@ -115,7 +115,7 @@ def check(ctx: Context, connections: list[tuple[tuple[str, str, str, str], etree
                 continue
             info = ctx.comps[se].info if se in ctx.comps else None
             var = info.variables.get(sc) if info is not None else None
-            kind = coupling_kind(var.type, info.fmi_version) if var is not None else None
+            kind = coupling_kind(var.fmi_type, info.fmi_version) if var is not None else None
             if kind is None or kind in CONTINUOUS:
                 continue
             path = " -> ".join(f"{c}.{v}" for c, v in cycle_in(scc, edges))

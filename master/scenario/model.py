@@ -31,16 +31,11 @@ class Component:
     model_exchange: ModelExchange | None = None
 
 
-# the fixed-step methods of the shared solvers (fmus/solvers), by name; the index + 1 is the
-# number of the method (fmus/fmi/model.h SolverKind, which master.runtime.native checks)
-SOLVERS = ("euler", "ab2", "ab3", "rk4", "semi_implicit_euler", "semi_implicit_midpoint")
-
-
 @dataclass(frozen=True)
 class ModelExchange:
     """How the master integrates a Model Exchange component in each of its communication steps:
-    `solver` (SOLVERS) with steps of `internal_step` (s; None: one step per communication step),
-    its inputs at every stage time from the extrapolation polynomials."""
+    `solver` (an item of master.solvers.SOLVERS) with steps of `internal_step` (s; None: one step
+    per communication step), its inputs at every stage time from the extrapolation polynomials."""
 
     solver: str = "rk4"
     internal_step: Fraction | None = None

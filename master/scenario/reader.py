@@ -17,10 +17,12 @@ from pathlib import Path
 
 from lxml import etree
 
+from master.description import FLOATS, Description, Variable
+
 from . import archive, bindings, defaults, fmuinfo, loops, settings, systems, transforms, xmlio
 from .check import times as time_problems
 from .context import Comp, Context
-from .fmuinfo import FLOATS, SourceError
+from .fmuinfo import SourceError
 from .model import Component, Connection, Scenario, Transformation
 from .numbers import parse_time
 from .problems import NS_SSC, NS_SSD, Problem, Problems, ScenarioError, describe
@@ -37,7 +39,7 @@ KIND_CAUSALITY = {
     "parameter": {"parameter", "structuralParameter"},
     "calculatedParameter": {"calculatedParameter"},
 }
-# ssc type element of a connector -> FMU types it may stand for (FMI 3 names, see fmuinfo.type_class)
+# ssc type element of a connector -> FMU types it may stand for (FMI 3 names, see description.type_class)
 CONNECTOR_TYPES = {
     "Real": FLOATS,
     "Integer": {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"},
@@ -241,7 +243,7 @@ def _components(ctx: Context, flat: systems.Flat) -> None:
             _connector(ctx, comp, conn)
 
 
-def _fmu(ctx: Context, elem: etree._Element) -> fmuinfo.FmuInfo | None:
+def _fmu(ctx: Context, elem: etree._Element) -> Description | None:
     if elem.get("type", FMU_TYPE) != FMU_TYPE:
         ctx.at(elem, f'type "{elem.get("type")}" is not supported: components must be FMUs ({FMU_TYPE})')
         return None
@@ -259,7 +261,7 @@ def _fmu(ctx: Context, elem: etree._Element) -> fmuinfo.FmuInfo | None:
     if info.unsupported:
         ctx.at(elem, f"{info.path.name}: {info.unsupported}")
         return None
-    for defect in info.defects:  # read all the same, as peer masters do (master.fmu.TOLERATED)
+    for defect in info.defects:  # read all the same, as peer masters do (master.description.TOLERATED)
         where = f"{ctx.shown}:{elem.sourceline}: {describe(elem)}"
         log.warning("%s: modelDescription.xml of %s: %s (read all the same)", where, info.path.name, defect)
     return info
@@ -286,7 +288,7 @@ def _connector(ctx: Context, comp: Comp, conn: etree._Element) -> None:
             continue
         declared = etree.QName(typed).localname
         if var.kind not in CONNECTOR_TYPES.get(declared, set()):
-            ctx.at(conn, f"type mismatch: connector is ssc:{declared}, {comp.name}.{name} is {var.type}")
+            ctx.at(conn, f"type mismatch: connector is ssc:{declared}, {comp.name}.{name} is {var.fmi_type}")
         unit = typed.get("unit")
         if unit and var.unit and unit != var.unit:
             ctx.at(conn, f'unit mismatch: connector in "{unit}", {comp.name}.{name} in "{var.unit}"')
@@ -321,7 +323,7 @@ def _connections(
         links.append(((se, sc, ee, ec), elem))
         ok = True
         problem = fmuinfo.connection_problem(
-            f"{se}.{sc}", out.type, ctx.comps[se].info.fmi_version, f"{ee}.{ec}", inp.type,
+            f"{se}.{sc}", out.fmi_type, ctx.comps[se].info.fmi_version, f"{ee}.{ec}", inp.fmi_type,
             ctx.comps[ee].info.fmi_version, out.shape, inp.shape,
         )  # fmt: skip
         transformation = None
@@ -349,7 +351,7 @@ def _connections(
     return good, links, transformed
 
 
-def _unit(ctx: Context, comp: str, connector: str, var: fmuinfo.Var) -> str | None:
+def _unit(ctx: Context, comp: str, connector: str, var: Variable) -> str | None:
     """The unit of a connection's end: its FMU variable's, else the one its ssd:Connector declares."""
     if var.unit:
         return var.unit
@@ -357,7 +359,7 @@ def _unit(ctx: Context, comp: str, connector: str, var: fmuinfo.Var) -> str | No
     return next((t.get("unit") for t in typed if t.get("unit")), None)
 
 
-End = tuple[str, str, fmuinfo.Var]  # (component, connector, its FMU variable)
+End = tuple[str, str, Variable]  # (component, connector, its FMU variable)
 
 
 def _written_transformation(elem: etree._Element) -> bool:
@@ -378,7 +380,7 @@ def _oriented(ctx: Context, elem: etree._Element, start: End, end: End) -> tuple
     return start, end
 
 
-def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> fmuinfo.Var | None:
+def _end(ctx: Context, elem: etree._Element, comp: str, connector: str) -> Variable | None:
     """The FMU variable at one end of a connection (which must be a declared connector)."""
     c = ctx.comps.get(comp)
     if c is None:

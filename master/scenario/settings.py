@@ -14,19 +14,13 @@ from fractions import Fraction
 
 from lxml import etree
 
+from master.description import FLOATS, Description, typed
 from master.schedule import Clock
+from master.solvers import NUMBERS
 
 from .context import Context
-from .fmuinfo import (
-    FLOATS,
-    FmuInfo,
-    iteration_problem,
-    point_problem,
-    record_problem,
-    stimulus_problem,
-    typed,
-)
-from .model import SOLVERS, Iteration, LoopSolver, ModelExchange, Scheme, Stimulus
+from .fmuinfo import iteration_problem, point_problem, record_problem, stimulus_problem
+from .model import Iteration, LoopSolver, ModelExchange, Scheme, Stimulus
 from .numbers import parse_time
 from .problems import NS_MM, NS_SSC, NS_SSD
 from .xmlio import tag
@@ -55,19 +49,19 @@ class Settings:
     model_exchange: dict[str, ModelExchange] = field(default_factory=dict)  # components run as ME
 
 
-def model_exchange_problems(me: ModelExchange, step: Fraction, info: FmuInfo | None) -> list[str]:
+def model_exchange_problems(me: ModelExchange, step: Fraction, info: Description | None) -> list[str]:
     """What is wrong with running a component as Model Exchange, `me`, with communication step
     `step` (s) and FMU `info` (None: unreadable, reported elsewhere): the one rule of files and of
     scenarios built in Python."""
     found = []
-    if me.solver not in SOLVERS:
-        found.append(f'solver "{me.solver}" is not one of {", ".join(SOLVERS)}')
+    if me.solver not in NUMBERS:
+        found.append(f'solver "{me.solver}" is not one of {", ".join(NUMBERS)}')
     if me.internal_step is not None and (Fraction(me.internal_step) <= 0 or me.substeps(step) is None):
         found.append(
             f"internalStep {seconds(Fraction(me.internal_step))} does not divide the communication step "
             f"{seconds(step)} into whole steps"
         )
-    if info is not None and not info.model_exchange:
+    if info is not None and not info.integrable:
         found.append(f"modelExchange: {info.path.name} has no Model Exchange 2.0 or 3.0 interface")
     return found
 
@@ -311,7 +305,7 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
 
 
 def _model_exchange(
-    ctx: Context, ce: etree._Element, attrs: dict, s: Settings, name: str, info: FmuInfo | None
+    ctx: Context, ce: etree._Element, attrs: dict, s: Settings, name: str, info: Description | None
 ) -> bool:
     """Whether component `name` runs as Model Exchange (modelExchange="true", or an FMU without a
     Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
@@ -464,9 +458,9 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        problem = stimulus_problem(var.type, version, kind, var.shape)
+        problem = stimulus_problem(var.fmi_type, version, kind, var.shape)
         if problem:
-            ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.type, var.shape)}: {problem}")
+            ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.fmi_type, var.shape)}: {problem}")
             ok = False
         if key in found:
             ctx.at(se, f"{key[0]}.{key[1]} already has a stimulus on line {found[key].sourceline}")

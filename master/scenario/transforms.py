@@ -16,15 +16,17 @@ from dataclasses import dataclass
 
 from lxml import etree
 
+from master.description import FLOATS, Variable
+
 from .context import Context
-from .fmuinfo import FLOATS, Var, stimulus_value_problem
+from .fmuinfo import stimulus_value_problem
 from .model import Transformation
 from .problems import NS_SSC, NS_SSD
 from .xmlio import tag
 
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")  # ssc:BaseUnit's exponents
 INTEGERS = {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
-# ssc element -> (the value types (fmuinfo.type_class) of the connections it may transform, their name)
+# ssc element -> (the value types (description.type_class) of the connections it may transform, their name)
 ELEMENTS = {
     "LinearTransformation": (FLOATS, "Real"),
     "BooleanMappingTransformation": ({"Boolean"}, "Boolean"),
@@ -71,8 +73,8 @@ def read(
     ctx: Context,
     elem: etree._Element,
     ends: tuple[str, str],
-    out: Var,
-    inp: Var,
+    out: Variable,
+    inp: Variable,
     unit_of: tuple[str | None, str | None],
     defined: dict[str, Unit],
     in_version: str,
@@ -86,7 +88,9 @@ def read(
     if given is not None:
         local = etree.QName(given).localname
         allowed, named = ELEMENTS[local]
-        wrong = [f"{n} is {v.type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed]
+        wrong = [
+            f"{n} is {v.fmi_type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed
+        ]
         if wrong:
             ctx.at(given, f"transforms {named} values only: {', '.join(wrong)}")
             return False, None
@@ -136,7 +140,7 @@ def _dimension(u: Unit) -> str:
 
 
 def _mapping(
-    ctx: Context, given: etree._Element, local: str, ends: tuple[str, str], out: Var, inp: Var
+    ctx: Context, given: etree._Element, local: str, ends: tuple[str, str], out: Variable, inp: Variable
 ) -> tuple[tuple[float, float], ...] | None:
     """The (source, target) values of a mapping transformation's ssc:MapEntry elements."""
     pairs: list[tuple[float, float]] = []
@@ -158,7 +162,7 @@ def _mapping(
     return tuple(pairs)
 
 
-def _entry_value(local: str, text: str, var: Var) -> float | None:
+def _entry_value(local: str, text: str, var: Variable) -> float | None:
     if local == "BooleanMappingTransformation":
         return {"true": 1.0, "1": 1.0, "false": 0.0, "0": 0.0}.get(text)
     if local == "EnumerationMappingTransformation":
@@ -169,27 +173,29 @@ def _entry_value(local: str, text: str, var: Var) -> float | None:
         return None
 
 
-def problem(t: Transformation, ends: tuple[str, str], out: Var, inp: Var, in_version: str) -> str | None:
+def problem(
+    t: Transformation, ends: tuple[str, str], out: Variable, inp: Variable, in_version: str
+) -> str | None:
     """What is wrong with transformation `t` on the connection `ends` from `out` to `inp` (of an
     FMU of FMI version `in_version`); None: it can run. A scenario built in Python keeps these rules
     as a file does."""
     if t.kind not in KINDS:
         return f'transformation kind "{t.kind}": expected "linear" or "map"'
     allowed, named = KINDS[t.kind]
-    wrong = [f"{n} is {v.type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed]
+    wrong = [f"{n} is {v.fmi_type}" for n, v in zip(ends, (out, inp), strict=True) if v.kind not in allowed]
     if wrong:
         return f"a {t.kind} transformation transforms {named} values only: {', '.join(wrong)}"
     numbers = (t.factor, t.offset, *(x for pair in t.mapping for x in pair))
     if not all(isinstance(x, int | float) and math.isfinite(x) for x in numbers):
         return "a transformation's factor, offset and mapped values must be finite numbers"
     for _, target in t.mapping:  # the kernel sets them as the input's type
-        wrong = stimulus_value_problem(inp.type, in_version, target)
+        wrong = stimulus_value_problem(inp.fmi_type, in_version, target)
         if wrong:
-            return f"mapped value {target:g} is {wrong} ({ends[1]} is {inp.type})"
+            return f"mapped value {target:g} is {wrong} ({ends[1]} is {inp.fmi_type})"
     return None
 
 
-def unit_problem(ends: tuple[str, str], out: Var, inp: Var, t: Transformation | None) -> str | None:
+def unit_problem(ends: tuple[str, str], out: Variable, inp: Variable, t: Transformation | None) -> str | None:
     """A unit mismatch between the ends of a connection that its transformation does not convert
     (None: the units agree, one end has none, or `t` converts between them)."""
     if not (out.unit and inp.unit) or out.unit == inp.unit:

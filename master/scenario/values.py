@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from .fmuinfo import FLOATS, INT_RANGES, Var, element_names, typed
+from master.description import FLOATS, INT_RANGES, Variable, element_names, hex_bytes, typed
+
 from .model import Value
 
 SETTABLE_CAUSALITIES = {"parameter", "structuralParameter", "input"}
@@ -14,7 +15,7 @@ class BadValue(Exception):
     """A value that does not fit the variable (message says why)."""
 
 
-def settable(var: Var, element: bool = False) -> str | None:
+def settable(var: Variable, element: bool = False) -> str | None:
     """Why `var` cannot take a parameter binding, or None if it can.
 
     SSP 1.0 / FMI: parameters and inputs that are not constant and whose start is not calculated,
@@ -25,11 +26,11 @@ def settable(var: Var, element: bool = False) -> str | None:
     if var.shape and not element:
         first = element_names(var.name, var.shape)[0]
         return (
-            f"it is an array ({typed(var.type, var.shape)}); array parameters are not supported as a "
+            f"it is an array ({typed(var.fmi_type, var.shape)}); array parameters are not supported as a "
             f"whole: bind its elements, such as {first}, one by one"
         )
     if element and var.kind in ("String", "Binary"):
-        return f"arrays of {var.type} take no values"
+        return f"arrays of {var.fmi_type} take no values"
     start_output = var.causality == "output" and var.initial in ("exact", "approx")
     if var.causality not in SETTABLE_CAUSALITIES and not start_output:
         return (
@@ -43,7 +44,7 @@ def settable(var: Var, element: bool = False) -> str | None:
     return None
 
 
-def from_string(var: Var, text: str) -> Value:
+def from_string(var: Variable, text: str) -> Value:
     """Convert a command-line string to `var`'s type (Enumeration: item name or number)."""
     kind = var.kind
     text = text.strip()
@@ -51,13 +52,13 @@ def from_string(var: Var, text: str) -> Value:
         try:
             value = float(text)
         except ValueError:
-            raise BadValue(f'"{text}" is not a number ({var.name} is {var.type})') from None
+            raise BadValue(f'"{text}" is not a number ({var.name} is {var.fmi_type})') from None
         return check_range(var, value)
     if kind in INT_RANGES:
         try:
             return check_range(var, int(text))
         except ValueError:
-            raise BadValue(f'"{text}" is not an integer ({var.name} is {var.type})') from None
+            raise BadValue(f'"{text}" is not an integer ({var.name} is {var.fmi_type})') from None
     if kind == "Boolean":
         lowered = text.lower()
         if lowered in ("true", "1"):
@@ -71,10 +72,10 @@ def from_string(var: Var, text: str) -> Value:
         return text
     if kind == "Binary":
         return binary(var, text)
-    raise BadValue(f"{var.name} has type {var.type}, which parameters cannot set")
+    raise BadValue(f"{var.name} has type {var.fmi_type}, which parameters cannot set")
 
 
-def from_ssv(var: Var, ssv_type: str, text: str, unit: str | None) -> Value:
+def from_ssv(var: Variable, ssv_type: str, text: str, unit: str | None) -> Value:
     """Convert one ssv:Parameter value (already schema-valid for `ssv_type`) to `var`'s type."""
     kind = var.kind
     if ssv_type == "Real" and kind in FLOATS:
@@ -94,10 +95,10 @@ def from_ssv(var: Var, ssv_type: str, text: str, unit: str | None) -> Value:
         return enumeration(var, text)
     if ssv_type == "Binary" and kind == "Binary":  # mime-type not compared (SSP leaves that to users)
         return binary(var, text)
-    raise BadValue(f"type mismatch: ssv:{ssv_type} value for {var.name}, which is {var.type}")
+    raise BadValue(f"type mismatch: ssv:{ssv_type} value for {var.name}, which is {var.fmi_type}")
 
 
-def enumeration(var: Var, text: str) -> int:
+def enumeration(var: Variable, text: str) -> int:
     """An Enumeration value from an item name or its number."""
     names = dict(var.items)
     if text in names:
@@ -112,16 +113,7 @@ def enumeration(var: Var, text: str) -> int:
     raise BadValue(f'"{text}" is not an item of {var.name} ({choices})')
 
 
-def hex_bytes(text: str) -> bytes:
-    """The bytes that hex digits stand for ("0a1B2c", "0x0a1b2c", "0a 1b": two digits a byte);
-    ValueError if `text` is not that. An empty text is no bytes."""
-    text = text.strip()
-    if text[:2] in ("0x", "0X"):
-        text = text[2:]
-    return bytes.fromhex(text)
-
-
-def binary(var: Var, text: str) -> bytes:
+def binary(var: Variable, text: str) -> bytes:
     """A Binary value from hex digits (ssv:Binary's xs:hexBinary, or --set c.b=0a1b2c)."""
     try:
         return hex_bytes(text)
@@ -131,7 +123,7 @@ def binary(var: Var, text: str) -> bytes:
         ) from None
 
 
-def check_range(var: Var, value: float | int) -> float | int:
+def check_range(var: Variable, value: float | int) -> float | int:
     """`value` if it is finite and inside [min, max] of `var` (and of its integer type)."""
     if isinstance(value, float) and not math.isfinite(value):
         raise BadValue(f"{value} is not a finite number")

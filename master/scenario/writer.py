@@ -24,6 +24,8 @@ from pathlib import Path
 
 from lxml import etree
 
+from master.description import Variable, lookup
+
 from . import fmuinfo
 from .archive import SSD_NAME
 from .model import ModelExchange, Scenario, Scheme, Value
@@ -137,7 +139,7 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
             it = _child(settings, "Iteration")
             it.set("tolerance", repr(new.iteration.tolerance))
             it.set("maxIterations", str(new.iteration.max_iterations))
-    changes: dict[str, tuple[fmuinfo.Var, Value]] = {}
+    changes: dict[str, tuple[Variable, Value]] = {}
     for comp in new.components:
         before = old.component(comp.name).parameters
         variables = fmuinfo.read(comp.fmu_path).variables
@@ -145,7 +147,7 @@ def _edit(root: etree._Element, old: Scenario, new: Scenario, title: str) -> Non
                    if before.get(k) != v and (k in before or not _is_start(variables, k, v))}  # fmt: skip
         if changed:
             path = _path(system, component_element(system, comp.name))  # also in a nested system
-            changes |= {f"{path}.{k}": (fmuinfo.lookup(variables, k)[0], v) for k, v in changed.items()}
+            changes |= {f"{path}.{k}": (lookup(variables, k)[0], v) for k, v in changed.items()}
     if changes:
         _append_parameters(system, changes, title)
 
@@ -191,10 +193,10 @@ def _child(parent: etree._Element, kind: str, **attrs: str) -> etree._Element:
     return elem
 
 
-def _is_start(variables: dict[str, fmuinfo.Var], name: str, value: Value) -> bool:
+def _is_start(variables: dict[str, Variable], name: str, value: Value) -> bool:
     """Whether `value` is the FMU's own start value of variable (or array element) `name`
     (setting it changes nothing)."""
-    var, position = fmuinfo.lookup(variables, name)
+    var, position = lookup(variables, name)
     start = var.start
     if start is not None and position is not None:  # an array's start: its elements, row major
         starts = start.split()
@@ -208,7 +210,7 @@ def _is_start(variables: dict[str, fmuinfo.Var], name: str, value: Value) -> boo
 
 
 def _append_parameters(
-    element: etree._Element, values: dict[str, tuple[fmuinfo.Var, Value]], title: str
+    element: etree._Element, values: dict[str, tuple[Variable, Value]], title: str
 ) -> None:
     bindings = element.find(tag(NS_SSD, "ParameterBindings"))
     if bindings is None:
@@ -225,7 +227,7 @@ def _append_parameters(
     _indent(binding, bindings)
 
 
-def _ssv_type(var: fmuinfo.Var, value: Value) -> str:
+def _ssv_type(var: Variable, value: Value) -> str:
     if var.kind == "Enumeration":
         return "Enumeration"
     if isinstance(value, bytes):
@@ -235,7 +237,7 @@ def _ssv_type(var: fmuinfo.Var, value: Value) -> str:
     return "Integer" if isinstance(value, int) else "String" if isinstance(value, str) else "Real"
 
 
-def _ssv_text(var: fmuinfo.Var, value: Value) -> str:
+def _ssv_text(var: Variable, value: Value) -> str:
     if var.kind == "Enumeration":  # the item's name, as people write it
         return next((n for n, v in var.items if v == value), str(value))
     if isinstance(value, bytes):  # xs:hexBinary

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from master.scenario.fmuinfo import FLOATS, NUMERIC, Var
+from master.description import FLOATS, NUMERIC, Variable
 from master.scenario.fmuinfo import read as read_fmu
 from master.scenario.model import Scenario
 from master.scenario.names import split
@@ -40,7 +40,7 @@ class Range:
     count: int | None  # grid points; None for lhs/sobol
     integer: bool = False  # an integer variable: drawn values are rounded
     stimulus: bool = False  # an input driven by a one-point step stimulus: the value is its height
-    var: Var | None = None  # the FMU's variable (bound by `bind`): each case's value is checked against it
+    var: Variable | None = None  # the FMU's variable (bound by `bind`): each case's value is checked by it
 
     def grid(self) -> list[float | int]:
         values = np.linspace(self.start, self.stop, self.count or 1).tolist()
@@ -115,11 +115,11 @@ def bind(ranges: list[Range], sc: Scenario) -> list[Range]:
     return bound
 
 
-def _why_not(v: Var) -> str | None:
+def _why_not(v: Variable) -> str | None:
     from master.scenario.values import settable
 
     if v.kind not in NUMERIC:
-        return f"it is {v.type}; only numbers can be varied"
+        return f"it is {v.fmi_type}; only numbers can be varied"
     return settable(v)
 
 
