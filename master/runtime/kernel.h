@@ -50,7 +50,7 @@ enum {
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
     MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
                               the residual, the iterations) */
-    MK_EVENT = 11,         /* a Model Exchange FMU asked for event mode (events are not handled yet) */
+    MK_EVENT = 11,         /* unused: Model Exchange events are handled (me_step) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -71,6 +71,9 @@ enum {
      * solver's code, 2: a singular linear system) */
     MK_CALL_SET_TIME, MK_CALL_SET_STATES, MK_CALL_GET_STATES, MK_CALL_GET_DERIVATIVES, MK_CALL_COMPLETED_STEP,
     MK_CALL_DIRECTIONAL_DERIVATIVE, MK_CALL_SOLVER,
+    /* Model Exchange events */
+    MK_CALL_GET_EVENT_INDICATORS, MK_CALL_ENTER_EVENT_MODE, MK_CALL_UPDATE_DISCRETE_STATES,
+    MK_CALL_ENTER_CONTINUOUS_TIME_MODE,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -275,6 +278,19 @@ typedef struct {
     double *me_memory;
     double *me_memory_saved;
     void *me_work;
+    /* Model Exchange events (fmus/solvers/events.c ode_advance): time events met exactly
+     * (me_next_event: the FMU's nextEventTime, INFINITY none; saved in start-up with the history),
+     * the n_event_indicators indicators watched after each step and a sign change located to
+     * me_tolerance s (<= 0: EVENT_TOLERANCE), step events from fmi2/3CompletedIntegratorStep; each
+     * event: enter event mode, the event iteration, the states read back, continuous-time mode, the
+     * history restarted. me_events: an EventWork; *me_event_count counts the events handled. */
+    int32_t n_event_indicators;
+    mk_function get_event_indicators, enter_event_mode, update_discrete_states, enter_continuous_time_mode;
+    double me_next_event;
+    double me_next_event_saved;
+    double me_tolerance;
+    void *me_events;
+    int64_t *me_event_count;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -74,8 +74,22 @@ FMI_FUNCTIONS = {
     "get_states": (None, "fmi2GetContinuousStates", "fmi3GetContinuousStates"),
     "get_derivatives": (None, "fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
     "completed_step": (None, "fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"),
+    "get_event_indicators": (None, "fmi2GetEventIndicators", "fmi3GetEventIndicators"),
+    "enter_event_mode": (None, "fmi2EnterEventMode", "fmi3EnterEventMode"),
+    "update_discrete_states": (None, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
+    "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
 }
-ME_CALLS = ("set_time", "set_states", "get_states", "get_derivatives", "completed_step")
+ME_CALLS = (
+    "set_time",
+    "set_states",
+    "get_states",
+    "get_derivatives",
+    "completed_step",
+    "get_event_indicators",
+    "enter_event_mode",
+    "update_discrete_states",
+    "enter_continuous_time_mode",
+)
 
 
 ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
@@ -475,6 +489,16 @@ class CompiledPlan:
             raise MemoryError(f"{pc.name}: no memory for the solver's work space of {n} states")
         c.me_work = work
         weakref.finalize(self, self.lib.solver_work_free, work)
+        # its events: the time event the initial event iteration asks for comes at exit_initialization
+        c.n_event_indicators = nz = int(fmu.md.numberOfEventIndicators or 0)
+        c.me_next_event = math.inf
+        c.me_tolerance = 0.0  # EVENT_TOLERANCE (fmus/solvers/solvers.h)
+        c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
+        events = self.lib.event_work_new(n, nz)
+        if not events:
+            raise MemoryError(f"{pc.name}: no memory for the event indicators of {n} states, {nz} indicators")
+        c.me_events = events
+        weakref.finalize(self, self.lib.event_work_free, events)
 
     def _loop(self, index: int, lp: Loop, fmus: dict[str, Fmu]) -> native.Loop:
         """An algebraic loop's tables (kernel.h mk_loop); where another process steps it, only its
@@ -674,6 +698,8 @@ class CompiledPlan:
         except FmuError as e:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
+        if fmu.model_exchange:  # the time event its initial event iteration asked for
+            self.components[self.names.index(name)].me_next_event = fmu.next_event_time
 
     def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
         """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as
@@ -792,13 +818,6 @@ class CompiledPlan:
             )
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
-        if e.code == native.EVENT:
-            return SimulationError(
-                f"{name}: the Model Exchange FMU asks for event mode {step}; the master does not handle "
-                "events of Model Exchange FMUs yet",
-                name,
-                t,
-            )
         if call == "solver":
             why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
             return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
