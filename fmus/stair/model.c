@@ -1,12 +1,13 @@
 /* stair: a time-event counter.  The Integer output `counter` starts at 1 and grows by one at every
  * time event t = k period (k = 1, 2, ...): counter(t) = 1 + floor(t / period).  No continuous state.
+ * When the counter reaches `last` (> 0) the model ends the simulation (terminateSimulation).
  */
 #include "model.h"
 
-enum { VR_SOLVER, VR_INTERNAL_STEP, VR_PERIOD, VR_COUNTER, VR_NEXT, N_VARIABLES };
+enum { VR_SOLVER, VR_INTERNAL_STEP, VR_PERIOD, VR_COUNTER, VR_NEXT, VR_LAST, N_VARIABLES };
 
 enum { R_PERIOD = R_MODEL_START, R_NEXT, N_REALS };
-enum { I_COUNTER = I_MODEL_START, N_INTEGERS };
+enum { I_COUNTER = I_MODEL_START, I_LAST, N_INTEGERS };
 
 static const Variable VARIABLES[N_VARIABLES] = {
     COMMON_VARIABLES(SOLVER_EULER, 0.0),
@@ -16,6 +17,8 @@ static const Variable VARIABLES[N_VARIABLES] = {
      "1 + the number of periods passed", NO_STATE, ""},
     {"next_time", T_REAL, C_LOCAL, V_DISCRETE, I_CALCULATED, R_NEXT, 0.0, NULL, -INFINITY, INFINITY, "s",
      "time of the next step of the counter", NO_STATE, NULL},
+    {"last", T_INTEGER, C_PARAMETER, V_FIXED, I_EXACT, I_LAST, 0.0, NULL, 0.0, INFINITY, NULL,
+     "the counter at which the model ends the simulation; 0: never", NO_STATE, NULL},
 };
 
 static ModelStatus initialize(Instance *inst)
@@ -36,7 +39,7 @@ static ModelStatus update(Instance *inst, double t, double *x, EventUpdate *ev)
         ev->changed = 1;
     }
     ev->next_event_time = r[R_NEXT];
-    return MODEL_OK;
+    return *counter == model_integers(inst)[I_LAST] ? MODEL_TERMINATE : MODEL_OK;
 }
 
 const ModelDef MODEL = {
