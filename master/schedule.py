@@ -44,7 +44,7 @@ class Capability:
     assumed: frozenset[str] = frozenset()  # outputs that declare no dependencies (fmu.output_dependencies)
     directional_derivatives: bool = False  # providesDirectionalDerivative(s)
     model_exchange: bool = False  # instantiated for Model Exchange (fmu.runs_as_model_exchange)
-    event_indicators: int = 0  # of a Model Exchange FMU: state events the master does not locate yet
+    event_indicators: int = 0  # of a Model Exchange FMU: watched by the kernel (state events)
 
     def depends(self, output: str, inputs: dict[str, VariableInfo]) -> frozenset[str]:
         """The inputs `output` depends on directly (no table: all of `inputs`)."""
@@ -356,11 +356,6 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
         cap = caps[c.name]
         me = (c.model_exchange or ModelExchange()) if c.model_exchange or cap.model_exchange else None
         interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs and me is None)
-        if me is not None and cap.event_indicators:
-            notes.append(
-                f"{c.name}: its {cap.event_indicators} event indicators are not watched: the master does not "
-                "locate state events of Model Exchange FMUs yet (one that asks for event mode ends the run)"
-            )
         if c.interpolate_inputs and not interp:
             notes.append(
                 f"{c.name}: interpolate_inputs asked but the FMU cannot interpolate inputs "
