@@ -9,6 +9,7 @@ events that change the state), ratchet (step events).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from fractions import Fraction
 from pathlib import Path
@@ -201,3 +202,23 @@ def test_start_up_sweeps_restore_the_pending_time_event():
     d = run_everywhere(coupled)
     assert np.array_equal(d["kicked.y"], alone["kicked.y"])
     assert d["kicked.y"][1] > 1.0  # kicked twice by t = 0.1
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+@pytest.mark.parametrize("ratio_b, coupling", [(1, "jacobi"), (3, "jacobi"), (1, "gauss-seidel")])
+def test_discrete_inputs_of_a_model_exchange_component_are_input_events(fmi, ratio_b, coupling):
+    """FMI lets Integer and Boolean inputs change in event mode only: a Model Exchange component with
+    such inputs rests in event mode between its steps, each step beginning with the event iteration.
+    The discrete ring (tests/test_discrete.py) with b run as Model Exchange (Euler) gives the bits
+    of b as Co-Simulation, in every backend."""
+    from test_discrete import ring
+
+    sc = ring(ratio_b, coupling)
+    comps = tuple(dataclasses.replace(c, fmu_path=fmu("discrete", fmi)) for c in sc.components)
+    cs_ = dataclasses.replace(sc, components=comps)
+    b = dataclasses.replace(comps[1], model_exchange=ModelExchange("euler"))
+    me_ = dataclasses.replace(sc, components=(comps[0], b))
+    a, d = run_everywhere(cs_), run_everywhere(me_)
+    assert len(np.unique(d["b.n_in"])) > 1 and len(np.unique(d["b.on_in"])) > 1  # the inputs change
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], d[name]), name

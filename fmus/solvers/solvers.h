@@ -47,10 +47,12 @@ int solver_fd_jacobian(SolverWork *w, int n, RhsFn f, void *ctx, double t, const
  *    the rest of the step to the grid point integrated);
  *  - state events: after each step the event indicators are compared with those at its start; an
  *    indicator that changed its domain (z > 0 against z <= 0, as FMI defines it) is located inside
- *    the step by regula falsi with the Illinois modification on the solver's step size theta
- *    (z(t + theta) after one step of size theta from the step's start, the history as it was), to
- *    an interval of `tolerance` seconds; the step is redone to the interval's right end (where the
- *    indicator has changed its domain) and the event handled there;
+ *    the step by regula falsi with the Illinois modification on the solver's step size theta:
+ *    z(t + theta) after one step of size theta from the step's start (a multistep method, whose
+ *    history fits another step size no more, takes its start-up step there: RK4 for AB2 and AB3,
+ *    semi-implicit Euler for the midpoint rule), to an interval of `tolerance` seconds; the step is
+ *    redone to the interval's right end (where the indicator has changed its domain) and the event
+ *    handled there;
  *  - step events: `completed` after each step may ask for one.
  * After each event the multistep history restarts (solver_reset). */
 typedef int (*IndicatorFn)(void *ctx, double t, const double *x, double *z); /* 0: ok */

@@ -950,16 +950,13 @@ static int me_step_done(void *ctx, double t, const double *x, int *event, int *s
     return 0;
 }
 
-/* EventFn: the event at (t, x): event mode, the event iteration (new discrete states until none are
- * needed, or the FMU ends the simulation), the states read back if they changed, continuous-time mode;
- * *next_time the FMU's next time event. */
-static int me_event(void *ctx, double t, double *x, double *next_time, int *stop) {
-    me_context *m = ctx;
+/* The event iteration of an FMU in event mode (new discrete states until none are needed, or the FMU
+ * ends the simulation: *stop, the FMU left in event mode), then continuous-time mode and the states
+ * read back into x if they changed (*changed); *next_time the FMU's next time event. */
+static int me_iterate(me_context *m, double *x, double *next_time, int *stop, bool *changed) {
     mk_component *c = m->c;
-    bool changed = false, needed = true;
-    if (me_set_point(m, t, x)) return 1;
-    m->call = MK_CALL_ENTER_EVENT_MODE;
-    if ((m->status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK) return 1;
+    bool needed = true;
+    *changed = false;
     m->call = MK_CALL_UPDATE_DISCRETE_STATES;
     for (int round = 0; needed; round++) {
         bool end = false, values = false, defined = false;
@@ -977,16 +974,41 @@ static int me_event(void *ctx, double t, double *x, double *next_time, int *stop
             when = info.next_event_time;
         }
         if (m->status > STATUS_OK) return 1;
-        changed |= values;
+        *changed |= values;
         *next_time = defined ? when : INFINITY;
-        if (end) return *stop = 1, 0; /* the run ends here, the FMU left in event mode */
+        if (end) return *stop = 1, 0;
     }
     m->call = MK_CALL_ENTER_CONTINUOUS_TIME_MODE;
     if ((m->status = ((fmi_mode *)c->enter_continuous_time_mode)(c->instance)) > STATUS_OK) return 1;
     m->call = MK_CALL_GET_STATES;
-    if (changed && c->n_states && (m->status = ((fmi_get_states *)c->get_states)(c->instance, x, (size_t)c->n_states)) > STATUS_OK)
+    if (*changed && c->n_states && (m->status = ((fmi_get_states *)c->get_states)(c->instance, x, (size_t)c->n_states)) > STATUS_OK)
         return 1;
+    return 0;
+}
+
+/* EventFn: the event at (t, x): event mode, the event iteration, continuous-time mode. */
+static int me_event(void *ctx, double t, double *x, double *next_time, int *stop) {
+    me_context *m = ctx;
+    mk_component *c = m->c;
+    bool changed = false;
+    if (me_set_point(m, t, x)) return 1;
+    m->call = MK_CALL_ENTER_EVENT_MODE;
+    if ((m->status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK) return 1;
+    if (me_iterate(m, x, next_time, stop, &changed)) return 1;
     (*c->me_event_count)++;
+    return 0;
+}
+
+/* An FMU that rests in event mode between its communication steps (me_input_events), its inputs of
+ * time t set: the event iteration there (an input event), continuous-time mode; the history restarted
+ * if the states changed. 1 (m's call and status) if a call failed. */
+static int me_input_event(me_context *m, double t, int *stop) {
+    mk_component *c = m->c;
+    bool changed = false;
+    m->call = MK_CALL_SET_TIME;
+    if ((m->status = ((fmi_set_time *)c->set_time)(c->instance, t)) > STATUS_OK) return 1;
+    if (me_iterate(m, c->me_x, &c->me_next_event, stop, &changed)) return 1;
+    if (changed) solver_reset(c->me_memory, c->n_states);
     return 0;
 }
 
@@ -1002,6 +1024,10 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     me_context m = {c, u, t, MK_CALL_GET_STATES, STATUS_OK, final};
     const int32_t n = c->n_states, steps = c->me_substeps;
     const double h = c->h / (double)steps;
+    int stop = 0;
+    if (c->me_input_events && me_input_event(&m, t, &stop)) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
+    if (stop) return *terminate = 1, MK_DONE; /* ended at the input event, in event mode */
+    m.call = MK_CALL_GET_STATES;
     if (n && (m.status = ((fmi_get_states *)c->get_states)(c->instance, c->me_x, (size_t)n)) > STATUS_OK)
         return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
     const OdeProblem problem = {(SolverKind)c->me_solver,
@@ -1021,6 +1047,9 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     if (rc == ODE_STOP) *terminate = 1;
     else if (rc == 1) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
     else if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
+    m.call = MK_CALL_ENTER_EVENT_MODE; /* at t + h: its inputs are set and its outputs read there */
+    if (c->me_input_events && rc == 0 && (m.status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
     /* the step-start inputs again, as an interpolating FMU has them after its step */
     if (c->n_blocks > c->n_values && c->n_in_real && (m.status = set_real(c, c->in_vrs, c->n_in_real, u, c->n_in_real)) > STATUS_OK)
         return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, m.status, j);

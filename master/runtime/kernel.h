@@ -291,6 +291,11 @@ typedef struct {
     double me_tolerance;
     void *me_events;
     int64_t *me_event_count;
+    /* 1: inputs that FMI lets change in event mode only (discrete ones: Integer, Boolean, String, ...):
+     * the FMU rests in event mode between communication steps (its inputs and outputs set and read
+     * there) and each communication step begins with the event iteration (an input event) and
+     * continuous-time mode; the history restarts only where the states changed. */
+    int32_t me_input_events;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

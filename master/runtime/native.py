@@ -304,6 +304,7 @@ class Component(C.Structure):
         ("me_tolerance", _f64),
         ("me_events", _p),
         ("me_event_count", C.POINTER(_i64)),
+        ("me_input_events", _i32),
     ]
 
 

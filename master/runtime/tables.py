@@ -499,6 +499,9 @@ class CompiledPlan:
             raise MemoryError(f"{pc.name}: no memory for the event indicators of {n} states, {nz} indicators")
         c.me_events = events
         weakref.finalize(self, self.lib.event_work_free, events)
+        # inputs FMI lets change in event mode only: the FMU rests there between its steps (kernel.h)
+        discrete = any(variable(fmu, name).variability != "continuous" for name in in_names)
+        c.me_input_events = int(discrete or c.n_in_string + c.n_in_binary > 0)
 
     def _loop(self, index: int, lp: Loop, fmus: dict[str, Fmu]) -> native.Loop:
         """An algebraic loop's tables (kernel.h mk_loop); where another process steps it, only its
@@ -699,7 +702,14 @@ class CompiledPlan:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
         if fmu.model_exchange:  # the time event its initial event iteration asked for
-            self.components[self.names.index(name)].me_next_event = fmu.next_event_time
+            c = self.components[self.names.index(name)]
+            c.me_next_event = fmu.next_event_time
+            if c.me_input_events:  # its inputs are set in event mode (kernel.h)
+                try:
+                    fmu.slave.enterEventMode()
+                except FMICallException as e:
+                    t = float(self.plan.scenario.start_time)
+                    raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
 
     def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
         """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as
