@@ -49,12 +49,12 @@ def cs(name: str, fmi: int, solver: str, stop: float, step: float, internal: Fra
     )
 
 
-def bounces(until: float) -> list[float]:
-    """The closed-form bounce times before `until` (h0, g, e): t1 = sqrt(2 h0 / g), then flights of
-    2 e^k v1 / g."""
+def bounces(until: float, most: int = 20) -> list[float]:
+    """The closed-form bounce times before `until` (h0, g, e), at most `most`: t1 = sqrt(2 h0 / g),
+    then flights of 2 e^k v1 / g."""
     v1 = math.sqrt(2 * G * H0)
     times = [v1 / G]
-    while times[-1] + 2 * E ** len(times) * v1 / G < until:
+    while times[-1] + 2 * E ** len(times) * v1 / G < until and len(times) < most:
         times.append(times[-1] + 2 * E ** len(times) * v1 / G)
     return times
 
@@ -222,3 +222,17 @@ def test_discrete_inputs_of_a_model_exchange_component_are_input_events(fmi, rat
     assert len(np.unique(d["b.n_in"])) > 1 and len(np.unique(d["b.on_in"])) > 1  # the inputs change
     for name in a.dtype.names:
         assert np.array_equal(a[name], d[name]), name
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_ball_too_slow_to_take_off_rests(fmi):
+    """A bounce slower than v_min (0.1 m/s) puts the ball to rest before the bounces accumulate at
+    t1 (1 + e) / (1 - e): from the closed-form time of that bounce on h = DBL_MIN, v = 0, and no
+    more events (the run to 5 s ends)."""
+    v1 = math.sqrt(2 * G * H0)
+    last = next(k for k in range(1, 100) if E**k * v1 < 0.1)  # the bounce that ends it
+    rest = bounces(3.0)[last - 1]
+    d = run_everywhere(me("bouncing_ball", fmi, "rk4", 5.0, 0.01))
+    t, h, v = d["time"], d["bouncing_ball.h"], d["bouncing_ball.v"]
+    assert np.all(v[t > rest + 1e-6] == 0) and np.all(h[t > rest + 1e-6] == np.finfo(float).tiny)
+    assert np.all(v[(t > rest - 0.02) & (t < rest - 1e-6)] != 0)  # still flying just before
