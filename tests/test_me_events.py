@@ -20,6 +20,7 @@ import pytest
 from helpers import run_everywhere
 
 import master.api as api
+from master.backends.component import SimulationError
 from master.fmubuild import build_fmu, fmu_path
 from master.scenario.model import SOLVERS, Component, Connection, ModelExchange, Scenario
 
@@ -236,3 +237,19 @@ def test_a_ball_too_slow_to_take_off_rests(fmi):
     t, h, v = d["time"], d["bouncing_ball.h"], d["bouncing_ball.v"]
     assert np.all(v[t > rest + 1e-6] == 0) and np.all(h[t > rest + 1e-6] == np.finfo(float).tiny)
     assert np.all(v[(t > rest - 0.02) & (t < rest - 1e-6)] != 0)  # still flying just before
+
+
+@pytest.mark.parametrize("model_exchange", [True, False])
+def test_an_event_iteration_that_never_ends_stops_the_run_with_one_line(model_exchange):
+    """ratchet with drop = 0: at t = 1 every round changes its count and leaves x at 1."""
+    make = me if model_exchange else cs
+    with pytest.raises(SimulationError) as e:
+        api.run(make("ratchet", 2, "euler", 3.0, 0.25, drop=0.0), backend="in-process")
+    if model_exchange:
+        assert str(e.value) == (
+            "ratchet: its event iteration does not end (1000 rounds of fmi2NewDiscreteStates) "
+            "in the step from t=0.75 to t=1.0"
+        )
+    else:  # the FMU's own doStep: the layer's limit, named by the FMU
+        assert "the event iteration at t = 1 s does not end (100 rounds)" in str(e.value)
+        assert "fmi2DoStep" in str(e.value) and "t=0.75" in str(e.value)

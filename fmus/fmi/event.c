@@ -1,6 +1,7 @@
 /* event.c: a model's events through the layer (ModelDef.event_indicators, update): the Model
  * Exchange functions and doStep's events call these. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "instance.h"
@@ -45,8 +46,9 @@ int event_iteration(Instance *inst, const char *function, int *states_changed, i
         *states_changed |= changed;
         if (!needed || *terminate) return 0;
     }
-    layer_log(inst, LOG_ERROR, "%s: the event iteration at t = %.17g s does not end (%d rounds)", function,
-              inst->core->time, MAX_EVENT_ROUNDS);
+    (void)function; /* the caller reports the failure, with this as the model's error */
+    snprintf(inst->model_error, sizeof inst->model_error,
+             ": the event iteration at t = %.17g s does not end (%d rounds)", inst->core->time, MAX_EVENT_ROUNDS);
     return 1;
 }
 

@@ -503,6 +503,7 @@ LayerStatus exit_initialization(Instance *inst, const char *function) {
     if (inst->kind == KIND_CO_SIMULATION && m->update) { /* the initial event iteration, ME's importer's own */
         int changed = 0, terminate = 0;
         if (event_iteration(inst, function, &changed, &terminate)) {
+            layer_log(inst, LOG_ERROR, "%s: the initial event iteration failed%s", function, model_error_suffix(inst));
             inst->core->state = ST_ERROR;
             return LAYER_ERROR;
         }

@@ -239,7 +239,8 @@ int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop);
 /* The event update at the current time and states, once: *needed (it changed something: call again),
  * *states_changed, *terminate; the next time event into Core.  0 on success (logs on failure). */
 int event_update(Instance *inst, const char *function, int *needed, int *states_changed, int *terminate);
-/* The whole event iteration (event_update until nothing changes), as doStep and initialization run it. */
+/* The whole event iteration (event_update until nothing changes), as doStep and initialization run it;
+ * one that does not end leaves its reason as the model's error (model_error_suffix) for the caller. */
 int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate);
 /* The model's indicators at the current time and states into z; 0 on success. */
 int event_indicators_now(Instance *inst, double *z);

@@ -2,12 +2,13 @@
  * an event (fmi2/3CompletedIntegratorStep's enterEventMode), where x := x - 1 and the Integer output
  * `count` grows by one.  With rate 1 and a step that divides 1 exactly (a power of two), x reaches
  * 1 exactly at t = 1, 2, ...: count(t) = floor(t), x(t) = t - floor(t) on the step grid.
+ * `drop` (default 1) is what an event takes from x: with 0 the event iteration never ends.
  */
 #include "model.h"
 
-enum { VR_SOLVER, VR_INTERNAL_STEP, VR_X, VR_DER_X, VR_RATE, VR_COUNT, N_VARIABLES };
+enum { VR_SOLVER, VR_INTERNAL_STEP, VR_X, VR_DER_X, VR_RATE, VR_COUNT, VR_DROP, N_VARIABLES };
 
-enum { R_X = R_MODEL_START, R_DER_X, R_RATE, N_REALS };
+enum { R_X = R_MODEL_START, R_DER_X, R_RATE, R_DROP, N_REALS };
 enum { I_COUNT = I_MODEL_START, N_INTEGERS };
 
 static const Variable VARIABLES[N_VARIABLES] = {
@@ -20,6 +21,8 @@ static const Variable VARIABLES[N_VARIABLES] = {
      "slope of x", NO_STATE, NULL},
     {"count", T_INTEGER, C_OUTPUT, V_DISCRETE, I_EXACT, I_COUNT, 0.0, NULL, -INFINITY, INFINITY, NULL,
      "events so far", NO_STATE, ""},
+    {"drop", T_REAL, C_PARAMETER, V_FIXED, I_EXACT, R_DROP, 1.0, NULL, 0.0, INFINITY, NULL,
+     "taken from x at an event", NO_STATE, NULL},
 };
 
 static const int STATE_SLOTS[] = {R_X};
@@ -42,7 +45,7 @@ static ModelStatus update(Instance *inst, double t, double *x, EventUpdate *ev)
 {
     (void)t;
     if (x[0] >= 1.0) {
-        x[0] -= 1.0;
+        x[0] -= model_reals(inst)[R_DROP];
         model_integers(inst)[I_COUNT]++;
         ev->changed = 1;
     }

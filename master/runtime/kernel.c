@@ -950,6 +950,9 @@ static int me_step_done(void *ctx, double t, const double *x, int *event, int *s
     return 0;
 }
 
+#define MK_EVENT_ROUNDS 1000 /* an event iteration longer than this never ends (MK_EVENT) */
+#define MK_NEVER_ENDS (-1)   /* me_context.status of such an iteration */
+
 /* The event iteration of an FMU in event mode (new discrete states until none are needed, or the FMU
  * ends the simulation: *stop, the FMU left in event mode), then continuous-time mode and the states
  * read back into x if they changed (*changed); *next_time the FMU's next time event. */
@@ -961,7 +964,7 @@ static int me_iterate(me_context *m, double *x, double *next_time, int *stop, bo
     for (int round = 0; needed; round++) {
         bool end = false, values = false, defined = false;
         double when = 0.0;
-        if (round == 1000) return m->status = 3, 1; /* an iteration that never ends: as fmi2Error */
+        if (round == MK_EVENT_ROUNDS) return m->status = MK_NEVER_ENDS, 1;
         if (c->fmi == 3) {
             bool nominals = false;
             m->status = ((fmi3_update_discrete_states *)c->update_discrete_states)(c->instance, &needed, &end, &nominals,
@@ -1025,7 +1028,8 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     const int32_t n = c->n_states, steps = c->me_substeps;
     const double h = c->h / (double)steps;
     int stop = 0;
-    if (c->me_input_events && me_input_event(&m, t, &stop)) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
+    if (c->me_input_events && me_input_event(&m, t, &stop))
+        return fail(k, m.status == MK_NEVER_ENDS ? MK_EVENT : MK_FMI_ERROR, ci, m.call, m.status, j);
     if (stop) return *terminate = 1, MK_DONE; /* ended at the input event, in event mode */
     m.call = MK_CALL_GET_STATES;
     if (n && (m.status = ((fmi_get_states *)c->get_states)(c->instance, c->me_x, (size_t)n)) > STATUS_OK)
@@ -1045,7 +1049,7 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     long long events = 0;
     int rc = ode_advance(&problem, c->me_events, t, h, steps, t + c->h, c->me_x, &c->me_next_event, &events);
     if (rc == ODE_STOP) *terminate = 1;
-    else if (rc == 1) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
+    else if (rc == 1) return fail(k, m.status == MK_NEVER_ENDS ? MK_EVENT : MK_FMI_ERROR, ci, m.call, m.status, j);
     else if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
     m.call = MK_CALL_ENTER_EVENT_MODE; /* at t + h: its inputs are set and its outputs read there */
     if (c->me_input_events && rc == 0 && (m.status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK)

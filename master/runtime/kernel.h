@@ -50,7 +50,7 @@ enum {
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
     MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
                               the residual, the iterations) */
-    MK_EVENT = 11,         /* unused: Model Exchange events are handled (me_step) */
+    MK_EVENT = 11,         /* a Model Exchange FMU's event iteration does not end (MK_EVENT_ROUNDS rounds) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose

@@ -828,6 +828,11 @@ class CompiledPlan:
             )
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
+        if e.code == native.EVENT:
+            new = FMI_FUNCTIONS["update_discrete_states"][fmu.fmi - 1]
+            return SimulationError(
+                f"{name}: its event iteration does not end (1000 rounds of {new}) {step}", name, t
+            )
         if call == "solver":
             why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
             return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
