@@ -1,10 +1,10 @@
-"""The cost of events in a Model Exchange component: the bouncing ball (fmus/bouncing_ball, e = 1: a
-bounce every 0.903 s, no Zeno point) integrated by the master with RK4 at 10 ms communication steps,
+"""The cost of events in a Model Exchange component: the bouncing ball (fmus/bouncing_ball, e = 1: no
+Zeno point; from h0 = 1 mm a bounce every 28.6 ms) integrated by the master with RK4 at 10 ms steps,
 its bounces located to 1e-10 s (Illinois on the solver's step; each trial a step and the event
 indicators), against the same FMU as Co-Simulation (its doStep locates them with the same code:
 the same bits) and against a flight without bounces (h0 so high that the ball never lands).
 
-    .venv/bin/python benchmarks/me_events.py [--repeat 3] [--stop 100]
+    .venv/bin/python benchmarks/me_events.py [--repeat 3] [--stop 100] [--h0 0.001]
 
 Printed: microseconds per communication step inside the FMU (for Model Exchange with the kernel's
 solver and event location between the calls), the best of `repeat` in-process runs, the bounces,
@@ -45,13 +45,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--stop", type=int, default=100)
+    parser.add_argument("--h0", type=float, default=0.001, help="initial height, m")
     args = parser.parse_args()
     steps = args.stop / float(STEP)
-    bounces = math.floor((args.stop / math.sqrt(2 / 9.81) + 1) / 2)  # at t1 (2k + 1), t1 = sqrt(2 h0 / g)
-    print(f"bouncing ball, e = 1, {args.stop} s at {STEP} s (RK4), {bounces} bounces:")
+    t1 = math.sqrt(2 * args.h0 / 9.81)
+    bounces = math.floor((args.stop / t1 + 1) / 2)  # at t1 (2k + 1)
+    print(f"bouncing ball, e = 1, h0 = {args.h0} m, {args.stop} s at {STEP} s (RK4), {bounces} bounces:")
     for model_exchange in (True, False):
         kind = "model exchange" if model_exchange else "co-simulation "
-        bouncing = measure(scene(args.stop, model_exchange, 1.0), args.repeat)
+        bouncing = measure(scene(args.stop, model_exchange, args.h0), args.repeat)
         flying = measure(scene(args.stop, model_exchange, 1e9), args.repeat)
         per_bounce = (bouncing - flying) * steps / bounces
         print(
