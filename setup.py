@@ -51,7 +51,12 @@ setup(
         Extension(
             "master.runtime._kernel",
             # the shared fixed-step solvers and LU of the project's FMUs (master/runtime/native.py)
-            sources=["master/runtime/kernel.c", "fmus/solvers/solvers.c", "fmus/solvers/lu.c"],
+            sources=[
+                "master/runtime/kernel.c",
+                "fmus/solvers/solvers.c",
+                "fmus/solvers/lu.c",
+                "fmus/solvers/events.c",
+            ],
             depends=["master/runtime/kernel.h", "fmus/solvers/solvers.h", "fmus/fmi/model.h"],
             include_dirs=["fmus/solvers", "fmus/fmi"],
             extra_compile_args=["-std=c99", "-ffp-contract=off", "-Wall", "-Wextra"],

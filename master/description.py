@@ -99,6 +99,10 @@ FMI_FUNCTIONS = {
     "get_states": (None, "fmi2GetContinuousStates", "fmi3GetContinuousStates"),
     "get_derivatives": (None, "fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
     "completed_step": (None, "fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"),
+    "get_event_indicators": (None, "fmi2GetEventIndicators", "fmi3GetEventIndicators"),
+    "enter_event_mode": (None, "fmi2EnterEventMode", "fmi3EnterEventMode"),
+    "update_discrete_states": (None, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
+    "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
 }
 
 
@@ -244,7 +248,7 @@ class Capability:
     assumed: frozenset[str] = frozenset()  # outputs that declare no dependencies (`output_dependencies`)
     directional_derivatives: bool = False  # providesDirectionalDerivative(s), as fmpy reads it
     model_exchange: bool = False  # the flags of the Model Exchange interface (else Co-Simulation)
-    event_indicators: int = 0  # Model Exchange: numberOfEventIndicators
+    event_indicators: int = 0  # Model Exchange: numberOfEventIndicators (watched by the kernel: state events)
     model_identifier: str = ""
     completed_integrator_step: bool = False  # Model Exchange: needsCompletedIntegratorStep
 

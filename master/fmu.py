@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import math
 import shutil
 import tempfile
 import zipfile
@@ -529,9 +530,10 @@ class Fmu:
         none are needed), then continuous-time mode."""
         for _ in range(1000):
             if self.fmi3:
-                needed, terminate, *_ = self.slave.updateDiscreteStates()
+                needed, terminate, *_, timed, when = self.slave.updateDiscreteStates()
             else:
-                needed, terminate, *_ = self.slave.newDiscreteStates()
+                needed, terminate, *_, timed, when = self.slave.newDiscreteStates()
+            self.next_event_time = when if timed else math.inf  # the kernel meets it (kernel.h me_next_event)
             if terminate:
                 raise FmuError(self.describe("ends the simulation at its initialisation"))
             if not needed:

@@ -466,7 +466,7 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
         description=desc["description"] or "",
         generationTool=GENERATION_TOOL,
         variableNamingConvention="flat",
-        numberOfEventIndicators="0",
+        numberOfEventIndicators=str(desc["n_event_indicators"]),
     )
     capabilities = {
         "canGetAndSetFMUstate": "true",
@@ -475,7 +475,11 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
         "canNotUseMemoryManagementFunctions": "true",
     }
     me = etree.SubElement(
-        root, "ModelExchange", modelIdentifier=name, completedIntegratorStepNotNeeded="true", **capabilities
+        root,
+        "ModelExchange",
+        modelIdentifier=name,
+        completedIntegratorStepNotNeeded="false" if desc["has_step_event"] else "true",
+        **capabilities,
     )
     cs = etree.SubElement(
         root,
@@ -722,10 +726,11 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         variableNamingConvention="flat",
     )
     scalars_only = not any(v["dimensions"] for v in variables)
-    etree.SubElement(  # as FMI 2.0's: no event indicators, no events
+    etree.SubElement(  # as FMI 2.0's
         root,
         "ModelExchange",
         modelIdentifier=name,
+        needsCompletedIntegratorStep="true" if desc["has_step_event"] else "false",
         canGetAndSetFMUState="true",
         canSerializeFMUState="true",
         providesDirectionalDerivatives="true" if scalars_only else "false",
@@ -826,6 +831,14 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             or ((vr in state_vrs or vr in derivative_vrs) and calculated)
         ):
             unknown("InitialUnknown", vr, False)
+    given, needed = len(desc["event_indicator_vrs"]), desc["n_event_indicators"]
+    if given != needed:
+        raise FmuBuildError(
+            f"{FMUS_DIR / name / 'model.c'}: FMI 3.0 needs a variable per event indicator "
+            f"(MODEL.event_indicator_vrs gives {given} of {needed})"
+        )
+    for vr in desc["event_indicator_vrs"]:
+        unknown("EventIndicator", vr, False)
 
     text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
     return text.decode("utf-8")

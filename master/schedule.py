@@ -341,11 +341,6 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
         cap = caps[c.name]
         me = (c.model_exchange or ModelExchange()) if c.model_exchange or cap.model_exchange else None
         interp = bool(c.interpolate_inputs and cap.can_interpolate_inputs and me is None)
-        if me is not None and cap.event_indicators:
-            notes.append(
-                f"{c.name}: its {cap.event_indicators} event indicators are not watched: the master does not "
-                "locate state events of Model Exchange FMUs yet (one that asks for event mode ends the run)"
-            )
         if c.interpolate_inputs and not interp:
             notes.append(
                 f"{c.name}: interpolate_inputs asked but the FMU cannot interpolate inputs "

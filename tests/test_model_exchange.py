@@ -210,8 +210,9 @@ def without(source: Path, target: Path, interface: str, directional: bool = True
     return described(source, target, change)
 
 
-def test_event_indicators_are_noted_as_not_watched(tmp_path):
-    """Events are the next step: an FMU that declares event indicators runs, with a note."""
+def test_event_indicators_are_watched(tmp_path):
+    """The kernel reads as many event indicators as the description declares (tests/test_me_events.py):
+    a description that declares one its FMU does not have fails at fmi2GetEventIndicators, named."""
 
     def declare(text: str) -> str:
         return text.replace('numberOfEventIndicators="0"', 'numberOfEventIndicators="1"')
@@ -219,7 +220,8 @@ def test_event_indicators_are_noted_as_not_watched(tmp_path):
     indicated = described(fmu_path("dahlquist"), tmp_path / "d.fmu", declare)
     comp = Component("d", indicated, model_exchange=ModelExchange())
     sc = Scenario(tmp_path / "d.ssd", "d", (comp,), (), Fraction(0), Fraction(1), Fraction(1, 10))
-    assert any("its 1 event indicators are not watched" in note for note in api.plan(sc).notes)
+    with pytest.raises(SimulationError, match=r"fmi2GetEventIndicators.*in the step from t=0\.0"):
+        api.run(sc, backend="in-process")
 
 
 def test_an_fmu_without_co_simulation_runs_as_model_exchange(tmp_path):

@@ -340,13 +340,18 @@ fmi2Status fmi2EnterEventMode(fmi2Component c) {
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
     GUARD("fmi2NewDiscreteStates", S_EVENT);
+    int needed = 0, changed = 0, terminate = 0;
+    if (event_update(inst, "fmi2NewDiscreteStates", &needed, &changed, &terminate)) {
+        inst->core->state = ST_ERROR;
+        return inst->core->fatal ? fmi2Fatal : fmi2Error;
+    }
     if (eventInfo) {
-        eventInfo->newDiscreteStatesNeeded = fmi2False;
-        eventInfo->terminateSimulation = fmi2False;
+        eventInfo->newDiscreteStatesNeeded = needed && !terminate ? fmi2True : fmi2False;
+        eventInfo->terminateSimulation = terminate ? fmi2True : fmi2False;
         eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
-        eventInfo->valuesOfContinuousStatesChanged = fmi2False;
-        eventInfo->nextEventTimeDefined = fmi2False;
-        eventInfo->nextEventTime = 0.0;
+        eventInfo->valuesOfContinuousStatesChanged = changed ? fmi2True : fmi2False;
+        eventInfo->nextEventTimeDefined = isfinite(inst->core->next_event_time) ? fmi2True : fmi2False;
+        eventInfo->nextEventTime = isfinite(inst->core->next_event_time) ? inst->core->next_event_time : 0.0;
     }
     return fmi2OK;
 }
@@ -361,7 +366,12 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStat
                                        fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
     GUARD("fmi2CompletedIntegratorStep", S_CONT);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (enterEventMode) *enterEventMode = fmi2False;
+    int event = 0;
+    if (inst->model->step_event) {
+        gather_states(inst, inst->x);
+        event = inst->model->step_event(inst, inst->core->time, inst->x) != 0;
+    }
+    if (enterEventMode) *enterEventMode = event ? fmi2True : fmi2False;
     if (terminateSimulation) *terminateSimulation = fmi2False;
     return fmi2OK;
 }
@@ -405,11 +415,18 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
     GUARD("fmi2GetEventIndicators", S_INIT | S_EVENT | S_CONT | S_TERM);
-    (void)eventIndicators;
-    if (ni != 0) {
-        layer_log(inst, LOG_ERROR, "fmi2GetEventIndicators: ni = %zu but the model has no event indicators", ni);
+    if (ni != (size_t)inst->model->n_event_indicators) {
+        layer_log(inst, LOG_ERROR, "fmi2GetEventIndicators: ni = %zu but the model has %d event indicators", ni,
+                  inst->model->n_event_indicators);
         return fmi2Error;
     }
+    if (event_indicators_now(inst, inst->z)) {
+        layer_log(inst, LOG_ERROR, "fmi2GetEventIndicators: the model's event indicators failed at t = %.17g s%s",
+                  inst->core->time, model_error_suffix(inst));
+        inst->core->state = ST_ERROR;
+        return inst->core->fatal ? fmi2Fatal : fmi2Error;
+    }
+    for (size_t i = 0; i < ni; i++) eventIndicators[i] = inst->z[i];
     return fmi2OK;
 }
 

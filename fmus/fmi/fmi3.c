@@ -13,9 +13,10 @@
  *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
  *     needs no event handling;
  *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply;
- *   - Model Exchange as FMI 2.0's (no event indicators, no time events, nominals 1): after
- *     fmi3ExitInitializationMode the instance is in Event Mode, fmi3UpdateDiscreteStates has
- *     nothing to update, fmi3EnterContinuousTimeMode, then the states, time and derivatives.
+ *   - Model Exchange as FMI 2.0's (the model's event indicators, event update and step events,
+ *     nominals 1): after fmi3ExitInitializationMode the instance is in Event Mode,
+ *     fmi3UpdateDiscreteStates runs the model's event update, fmi3EnterContinuousTimeMode, then
+ *     the states, time and derivatives.
  * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
  * Scheduled Execution, Event Mode of Co-Simulation, clocks, Configuration Mode, intermediate
  * updates, output derivatives, adjoint derivatives, variable dependency queries.
@@ -502,13 +503,18 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
     if (inst->kind == KIND_CO_SIMULATION)
         return unsupported(inst, "fmi3UpdateDiscreteStates", "the FMU has no Event Mode");
     if (!check_state(inst, "fmi3UpdateDiscreteStates", S_EVENT)) return fmi3Error;
-    /* no discrete states, no time events: nothing to update */
-    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
-    if (terminateSimulation) *terminateSimulation = fmi3False;
+    int needed = 0, changed = 0, terminate = 0;
+    if (event_update(inst, "fmi3UpdateDiscreteStates", &needed, &changed, &terminate)) {
+        inst->core->state = ST_ERROR;
+        return inst->core->fatal ? fmi3Fatal : fmi3Error;
+    }
+    const int timed = isfinite(inst->core->next_event_time);
+    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = needed && !terminate;
+    if (terminateSimulation) *terminateSimulation = terminate != 0;
     if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
-    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = fmi3False;
-    if (nextEventTimeDefined) *nextEventTimeDefined = fmi3False;
-    if (nextEventTime) *nextEventTime = 0.0;
+    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = changed != 0;
+    if (nextEventTimeDefined) *nextEventTimeDefined = timed != 0;
+    if (nextEventTime) *nextEventTime = timed ? inst->core->next_event_time : 0.0;
     return fmi3OK;
 }
 
@@ -538,7 +544,12 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetF
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
     ME_GUARD("fmi3CompletedIntegratorStep", S_CONT);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (enterEventMode) *enterEventMode = fmi3False;
+    int event = 0;
+    if (inst->model->step_event) {
+        gather_states(inst, inst->x);
+        event = inst->model->step_event(inst, inst->core->time, inst->x) != 0;
+    }
+    if (enterEventMode) *enterEventMode = event != 0;
     if (terminateSimulation) *terminateSimulation = fmi3False;
     return fmi3OK;
 }
@@ -584,12 +595,18 @@ fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
     ME_GUARD("fmi3GetEventIndicators", S_INIT | S_EVENT | S_CONT | S_TERM);
-    (void)eventIndicators;
-    if (nEventIndicators != 0) {
-        layer_log(inst, LOG_ERROR, "fmi3GetEventIndicators: %zu asked but the model has no event indicators",
-                  nEventIndicators);
+    if (nEventIndicators != (size_t)inst->model->n_event_indicators) {
+        layer_log(inst, LOG_ERROR, "fmi3GetEventIndicators: %zu asked but the model has %d event indicators",
+                  nEventIndicators, inst->model->n_event_indicators);
         return fmi3Error;
     }
+    if (event_indicators_now(inst, inst->z)) {
+        layer_log(inst, LOG_ERROR, "fmi3GetEventIndicators: the model's event indicators failed at t = %.17g s%s",
+                  inst->core->time, model_error_suffix(inst));
+        inst->core->state = ST_ERROR;
+        return inst->core->fatal ? fmi3Fatal : fmi3Error;
+    }
+    for (size_t i = 0; i < nEventIndicators; i++) eventIndicators[i] = inst->z[i];
     return fmi3OK;
 }
 
@@ -611,7 +628,7 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
     ME_GUARD("fmi3GetNumberOfEventIndicators", ANY_STATE);
-    if (nEventIndicators) *nEventIndicators = 0;
+    if (nEventIndicators) *nEventIndicators = (size_t)inst->model->n_event_indicators;
     return fmi3OK;
 }
 

@@ -114,6 +114,9 @@ Instance *instance_new(const char *name, InstanceKind kind, int fmi_version, Emi
     inst->rhs_x = calloc((size_t)n + 1, sizeof(double));
     inst->rhs_dx = calloc((size_t)n + 1, sizeof(double));
     inst->rhs_u = calloc((size_t)inst->n_real_inputs + 1, sizeof(double));
+    inst->events = event_work_new(n, m->n_event_indicators);
+    inst->z = calloc((size_t)m->n_event_indicators + 1, sizeof(double));
+    if (!inst->events || !inst->z) goto fail;
     if (!inst->block || (n > 0 && !inst->work) || !inst->x || !inst->dx || !inst->input_values || !inst->jac ||
         !inst->saved_reals || !inst->fd_seed_base || !inst->fd_plus || !inst->fd_minus || !inst->rhs_x ||
         !inst->rhs_dx || !inst->rhs_u)
@@ -129,6 +132,8 @@ fail:
 void instance_free(Instance *inst) {
     if (!inst) return;
     if (inst->work) solver_work_free(inst->work);
+    event_work_free(inst->events);
+    free(inst->z);
     free(inst->block);
     free(inst->name);
     free(inst->real_input_slot);
@@ -195,6 +200,8 @@ void instance_reset(Instance *inst) {
         }
     }
     solver_reset(inst->memory, m->n_states);
+    inst->core->next_event_time = INFINITY;
+    inst->core->events = 0;
     inst->core->state = ST_INSTANTIATED;
     mark_dirty(inst);
     forget_rhs(inst);
@@ -492,6 +499,16 @@ LayerStatus exit_initialization(Instance *inst, const char *function) {
     }
     inst->core->state = inst->kind == KIND_CO_SIMULATION ? ST_STEP_COMPLETE : ST_EVENT;
     solver_reset(inst->memory, m->n_states);
+    inst->core->next_event_time = INFINITY;
+    if (inst->kind == KIND_CO_SIMULATION && m->update) { /* the initial event iteration, ME's importer's own */
+        int changed = 0, terminate = 0;
+        if (event_iteration(inst, function, &changed, &terminate)) {
+            layer_log(inst, LOG_ERROR, "%s: the initial event iteration failed%s", function, model_error_suffix(inst));
+            inst->core->state = ST_ERROR;
+            return LAYER_ERROR;
+        }
+        if (terminate) inst->core->terminate = 1;
+    }
     mark_dirty(inst);
     if (refresh(inst, 0, function) || check_finite(inst, function)) {
         inst->core->state = ST_ERROR;

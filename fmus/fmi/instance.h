@@ -68,6 +68,8 @@ typedef struct {
     int initialized;        /* Initialization Mode: MODEL.initialize ran and only inputs changed since */
     int fatal;              /* the model reported MODEL_FATAL: the step ends with Fatal */
     int terminate;          /* the model reported MODEL_TERMINATE: the simulation ends after this step */
+    double next_event_time; /* the model's pending time event (INFINITY: none) */
+    long long events;       /* events handled (Co-Simulation: inside doStep) */
 } Core;
 
 /* A Binary slot of the block. */
@@ -122,6 +124,9 @@ struct Instance {
     double *saved_reals;     /* n_reals: finite differences restore from here */
     double *fd_seed_base;    /* n_variables: known values around which to differentiate */
     double *fd_plus, *fd_minus; /* n_variables */
+
+    EventWork *events;       /* the state events' scratch (fmus/solvers/events.c) */
+    double *z;               /* n_event_indicators: fmi2/3GetEventIndicators */
 
     /* the latest evaluation of f (keep_rhs): not state, forgotten when anything but a Real input or
      * the states and time changes */
@@ -225,6 +230,20 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H);
 /* Model rhs/Jacobian with the input polynomials evaluated at time t (solver callbacks). */
 int rhs_with_inputs(void *ctx, double t, const double *x, double *dx);
 int jac_with_inputs(void *ctx, double t, const double *x, double *J);
+/* doStep's events (OdeProblem.indicators, .completed, .event), the inputs of time t as for f. */
+int indicators_with_inputs(void *ctx, double t, const double *x, double *z);
+int completed_in_step(void *ctx, double t, const double *x, int *event, int *stop);
+int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop);
+
+/* event.c: the model's events through the layer. */
+/* The event update at the current time and states, once: *needed (it changed something: call again),
+ * *states_changed, *terminate; the next time event into Core.  0 on success (logs on failure). */
+int event_update(Instance *inst, const char *function, int *needed, int *states_changed, int *terminate);
+/* The whole event iteration (event_update until nothing changes), as doStep and initialization run it;
+ * one that does not end leaves its reason as the model's error (model_error_suffix) for the caller. */
+int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate);
+/* The model's indicators at the current time and states into z; 0 on success. */
+int event_indicators_now(Instance *inst, double *z);
 
 /* derivative.c: d(unknowns)/d(knowns) * seed for scalar Real variables. */
 LayerStatus directional_derivative(Instance *inst, const char *function, const unsigned unknown[],

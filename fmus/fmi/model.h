@@ -94,6 +94,14 @@ typedef struct {
 
 typedef struct Instance Instance;
 
+/* What an event update (ModelDef.update) reports: the layer presets changed = 0 and next_event_time =
+ * INFINITY (no time event). */
+typedef struct {
+    int changed;            /* 1: it changed discrete variables or states, and is called again (the event
+                               iteration: FMI newDiscreteStatesNeeded) until it changes nothing */
+    double next_event_time; /* the next time event [s]; INFINITY: none */
+} EventUpdate;
+
 typedef struct {
     const char *identifier; /* modelIdentifier: the shared library's name */
     const char *guid;
@@ -144,6 +152,21 @@ typedef struct {
     /* 1: f does not depend on t itself, so a kept evaluation serves whatever the rounding of the
      * communication point's time (else the time must match to the bit). */
     int autonomous;
+
+    /* Events (Model Exchange: the importer handles them; Co-Simulation: doStep does, with the same
+     * method as the master, fmus/solvers/events.c).  None of them: a model without events. */
+    int n_event_indicators;
+    /* FMI 3.0 ModelStructure/EventIndicator: the value reference of a variable per indicator whose value
+     * it is (FMI 3.0 requires one); NULL: FMI 2.0 only. */
+    const int *event_indicator_vrs;
+    /* z[0 .. n_event_indicators) at (t, x): an event when one changes its domain (z > 0 against z <= 0). */
+    ModelStatus (*event_indicators)(Instance *inst, double t, const double *x, double *z);
+    /* The event at time t (a time event, a state event, a step event; and once after initialization, the
+     * initial event iteration): may change the states x and discrete variables, says what it changed
+     * and the next time event in *ev.  MODEL_TERMINATE: the simulation ends here.  NULL: none. */
+    ModelStatus (*update)(Instance *inst, double t, double *x, EventUpdate *ev);
+    /* Step events: after each completed integrator step at (t, x); 1 asks for an event.  NULL: none. */
+    int (*step_event)(Instance *inst, double t, const double *x);
 } ModelDef;
 
 extern const ModelDef MODEL;

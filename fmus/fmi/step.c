@@ -46,6 +46,37 @@ int jac_with_inputs(void *ctx, double t, const double *x, double *J) {
     return inst->model->jacobian(inst, t, x, J) != MODEL_OK;
 }
 
+int indicators_with_inputs(void *ctx, double t, const double *x, double *z) {
+    Instance *inst = ctx;
+    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    ModelStatus st = inst->model->event_indicators(inst, t, x, z);
+    if (st == MODEL_FATAL) inst->core->fatal = 1;
+    return st != MODEL_OK;
+}
+
+int completed_in_step(void *ctx, double t, const double *x, int *event, int *stop) {
+    Instance *inst = ctx;
+    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    *event = inst->model->step_event(inst, t, x) != 0;
+    *stop = 0;
+    return 0;
+}
+
+/* The event iteration at (t, x) inside doStep: the instance at that time and state, the inputs of
+ * time t; afterwards x as the model left it. */
+int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop) {
+    Instance *inst = ctx;
+    int changed = 0;
+    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inst->core->time = t;
+    scatter_states(inst, x);
+    mark_dirty(inst);
+    if (event_iteration(inst, "doStep", &changed, stop)) return 1;
+    gather_states(inst, x);
+    *next_time = inst->core->next_event_time;
+    return 0;
+}
+
 /* Number of internal steps in a communication step H, or 0 (logged) if H is not a multiple. */
 static long long internal_steps(Instance *inst, const char *function, double H) {
     double h = inst->reals[R_INTERNAL_STEP];
@@ -89,11 +120,24 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
         inst->input_values[i] = inst->reals[inst->real_input_slot[i]];
     inst->comm_point = t;
     gather_states(inst, inst->x);
-    for (long long j = 0; j < steps && rc == 0 && n > 0; j++) {
-        /* Substep times from the integer j: no accumulated drift. */
-        double s = t + (double)j * h;
-        rc = solver_step(kind, inst->memory, inst->work, n, rhs_with_inputs, m->jacobian ? jac_with_inputs : NULL,
-                         inst, s, h, inst->x);
+    if (n > 0 || m->update) { /* substep j from t + j h (from the integer j: no drift), events on the way */
+        const OdeProblem problem = {kind,
+                                    inst->memory,
+                                    inst->work,
+                                    n,
+                                    m->n_event_indicators,
+                                    rhs_with_inputs,
+                                    m->jacobian ? jac_with_inputs : NULL,
+                                    m->event_indicators ? indicators_with_inputs : NULL,
+                                    m->step_event ? completed_in_step : NULL,
+                                    event_in_step,
+                                    inst,
+                                    EVENT_TOLERANCE};
+        rc = ode_advance(&problem, inst->events, t, h, steps, t + H, inst->x, &c->next_event_time, &c->events);
+        if (rc == ODE_STOP) { /* the model ends the simulation: this step completes */
+            c->terminate = 1;
+            rc = 0;
+        }
     }
 
     /* Restore the inputs the master set and forget this step's derivatives. */

@@ -140,6 +140,11 @@ static int fd_jacobian(SolverWork *w, int n, RhsFn f, void *ctx, double t, const
     return 0;
 }
 
+int solver_fd_jacobian(SolverWork *w, int n, RhsFn f, void *ctx, double t, const double *x)
+{
+    return fd_jacobian(w, n, f, ctx, t, x);
+}
+
 /* Factor I - hJ in w->jac, J at (t, x).  Returns 0, 1 (f or jac failed) or 2 (singular). */
 static int factor_iteration_matrix(SolverWork *w, int n, RhsFn f, JacFn jac, void *ctx, double t, double h,
                                    const double *x)

@@ -57,6 +57,13 @@ typedef int fmi_set_states(void *, const double *, size_t);
 typedef int fmi_get_states(void *, double *, size_t);
 typedef int fmi2_completed_step(void *, int, int32_t *, int32_t *);
 typedef int fmi3_completed_step(void *, bool, bool *, bool *);
+typedef int fmi_mode(void *); /* fmi2/3EnterEventMode, fmi2/3EnterContinuousTimeMode */
+typedef struct {
+    int32_t new_discrete_states_needed, terminate_simulation, nominals_changed, values_changed, next_event_time_defined;
+    double next_event_time;
+} fmi2_event_info;
+typedef int fmi2_new_discrete_states(void *, fmi2_event_info *);
+typedef int fmi3_update_discrete_states(void *, bool *, bool *, bool *, bool *, bool *, double *);
 #define FMI2_DISCARD 2
 #define FMI2_TERMINATED 3 /* fmi2StatusKind fmi2Terminated */
 
@@ -856,6 +863,7 @@ typedef struct {
     double t0;
     int32_t call;
     int status;
+    bool final; /* fmi2/3CompletedIntegratorStep's noSetFMUStatePriorToCurrentPoint */
 } me_context;
 
 /* The Real inputs at time t from the step's polynomials, in the arithmetic of an FMU that
@@ -900,12 +908,17 @@ static int me_jacobian(void *ctx, double t, const double *x, double *J) {
     mk_component *c = m->c;
     const int32_t n = c->n_states;
     double column[n];
+    if (!c->me_state_vrs) return solver_fd_jacobian(c->me_work, n, me_rhs, m, t, x);
     if (me_set_point(m, t, x)) return 1;
     m->call = MK_CALL_DIRECTIONAL_DERIVATIVE;
     for (int32_t j = 0; j < n; j++) {
         const double seed = 1.0;
         m->status = get_directional_derivative(c, c->me_derivative_vrs, (size_t)n, &c->me_state_vrs[j], &seed, column);
-        if (m->status > STATUS_OK) return 1;
+        if (m->status > STATUS_OK) { /* not this FMU's after all: finite differences from now on (J is the
+                                        work's matrix, f(t, x) evaluated: solver_fd_jacobian's contract) */
+            c->me_state_vrs = NULL;
+            return solver_fd_jacobian(c->me_work, n, me_rhs, m, t, x);
+        }
         for (int32_t i = 0; i < n; i++) J[i * n + j] = column[i];
     }
     return 0;
@@ -924,35 +937,128 @@ static int me_completed(me_context *m, double t, const double *x, bool final, bo
     return st;
 }
 
+/* IndicatorFn: z = the FMU's event indicators at (t, x), fmi2/3GetEventIndicators. */
+static int me_indicators(void *ctx, double t, const double *x, double *z) {
+    me_context *m = ctx;
+    if (me_set_point(m, t, x)) return 1;
+    m->call = MK_CALL_GET_EVENT_INDICATORS;
+    m->status = ((fmi_get_states *)m->c->get_event_indicators)(m->c->instance, z, (size_t)m->c->n_event_indicators);
+    return m->status > STATUS_OK;
+}
+
+/* CompletedFn: fmi2/3CompletedIntegratorStep, a step event and the end as the FMU asks. */
+static int me_step_done(void *ctx, double t, const double *x, int *event, int *stop) {
+    me_context *m = ctx;
+    bool e = false, end = false;
+    if ((m->status = me_completed(m, t, x, m->final, &e, &end)) > STATUS_OK) return 1;
+    *event = e, *stop = end;
+    return 0;
+}
+
+#define MK_EVENT_ROUNDS 1000 /* an event iteration longer than this never ends (MK_EVENT) */
+#define MK_NEVER_ENDS (-1)   /* me_context.status of such an iteration */
+
+/* The event iteration of an FMU in event mode (new discrete states until none are needed, or the FMU
+ * ends the simulation: *stop, the FMU left in event mode), then continuous-time mode and the states
+ * read back into x if they changed (*changed); *next_time the FMU's next time event. */
+static int me_iterate(me_context *m, double *x, double *next_time, int *stop, bool *changed) {
+    mk_component *c = m->c;
+    bool needed = true;
+    *changed = false;
+    m->call = MK_CALL_UPDATE_DISCRETE_STATES;
+    for (int round = 0; needed; round++) {
+        bool end = false, values = false, defined = false;
+        double when = 0.0;
+        if (round == MK_EVENT_ROUNDS) return m->status = MK_NEVER_ENDS, 1;
+        if (c->fmi == 3) {
+            bool nominals = false;
+            m->status = ((fmi3_update_discrete_states *)c->update_discrete_states)(c->instance, &needed, &end, &nominals,
+                                                                                   &values, &defined, &when);
+        } else {
+            fmi2_event_info info = {0, 0, 0, 0, 0, 0.0};
+            m->status = ((fmi2_new_discrete_states *)c->update_discrete_states)(c->instance, &info);
+            needed = info.new_discrete_states_needed != 0, end = info.terminate_simulation != 0;
+            values = info.values_changed != 0, defined = info.next_event_time_defined != 0;
+            when = info.next_event_time;
+        }
+        if (m->status > STATUS_OK) return 1;
+        *changed |= values;
+        *next_time = defined ? when : INFINITY;
+        if (end) return *stop = 1, 0;
+    }
+    m->call = MK_CALL_ENTER_CONTINUOUS_TIME_MODE;
+    if ((m->status = ((fmi_mode *)c->enter_continuous_time_mode)(c->instance)) > STATUS_OK) return 1;
+    m->call = MK_CALL_GET_STATES;
+    if (*changed && c->n_states && (m->status = ((fmi_get_states *)c->get_states)(c->instance, x, (size_t)c->n_states)) > STATUS_OK)
+        return 1;
+    return 0;
+}
+
+/* EventFn: the event at (t, x): event mode, the event iteration, continuous-time mode. */
+static int me_event(void *ctx, double t, double *x, double *next_time, int *stop) {
+    me_context *m = ctx;
+    mk_component *c = m->c;
+    bool changed = false;
+    if (me_set_point(m, t, x)) return 1;
+    m->call = MK_CALL_ENTER_EVENT_MODE;
+    if ((m->status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK) return 1;
+    if (me_iterate(m, x, next_time, stop, &changed)) return 1;
+    (*c->me_event_count)++;
+    return 0;
+}
+
+/* An FMU that rests in event mode between its communication steps (me_input_events), its inputs of
+ * time t set: the event iteration there (an input event), continuous-time mode; the history restarted
+ * if the states changed. 1 (m's call and status) if a call failed. */
+static int me_input_event(me_context *m, double t, int *stop) {
+    mk_component *c = m->c;
+    bool changed = false;
+    m->call = MK_CALL_SET_TIME;
+    if ((m->status = ((fmi_set_time *)c->set_time)(c->instance, t)) > STATUS_OK) return 1;
+    if (me_iterate(m, c->me_x, &c->me_next_event, stop, &changed)) return 1;
+    if (changed) solver_reset(c->me_memory, c->n_states);
+    return 0;
+}
+
 /* One communication step of ME component ci from point j (time t), inputs u: its states integrated
  * to t + h by me_substeps steps of its solver (the substep times from the integer s, as the
- * project's FMUs take theirs), the FMU left at t + h with the step-start inputs. *terminate: 1 when
- * the FMU asks to end the simulation. A directional derivative that fails makes the Jacobian
+ * project's FMUs take theirs) with the FMU's events (fmus/solvers/events.c ode_advance: a time
+ * event cuts the step, a state event is located, a step event handled, each followed by the event
+ * iteration and a restarted history), the FMU left at t + h with the step-start inputs. *terminate:
+ * 1 when the FMU asks to end the simulation. A directional derivative that fails makes the Jacobian
  * finite differences from then on (as the loops'). */
 static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int64_t j, bool final, int *terminate) {
     mk_component *c = &k->components[ci];
-    me_context m = {c, u, t, MK_CALL_GET_STATES, STATUS_OK};
+    me_context m = {c, u, t, MK_CALL_GET_STATES, STATUS_OK, final};
     const int32_t n = c->n_states, steps = c->me_substeps;
     const double h = c->h / (double)steps;
+    int stop = 0;
+    if (c->me_input_events && me_input_event(&m, t, &stop))
+        return fail(k, m.status == MK_NEVER_ENDS ? MK_EVENT : MK_FMI_ERROR, ci, m.call, m.status, j);
+    if (stop) return *terminate = 1, MK_DONE; /* ended at the input event, in event mode */
+    m.call = MK_CALL_GET_STATES;
     if (n && (m.status = ((fmi_get_states *)c->get_states)(c->instance, c->me_x, (size_t)n)) > STATUS_OK)
         return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
-    for (int32_t s = 0; s < steps; s++) {
-        int rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs,
-                             c->me_state_vrs ? me_jacobian : NULL, &m, t + (double)s * h, h, c->me_x);
-        if (rc == 1 && m.call == MK_CALL_DIRECTIONAL_DERIVATIVE) { /* not this FMU's after all: */
-            c->me_state_vrs = NULL;                                 /* finite differences from now on */
-            rc = solver_step((SolverKind)c->me_solver, c->me_memory, c->me_work, n, me_rhs, NULL, &m,
-                             t + (double)s * h, h, c->me_x);
-        }
-        if (rc == 1) return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
-        if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
-        bool event = false, end = false;
-        const double te = s + 1 == steps ? t + c->h : t + (double)(s + 1) * h; /* the last: t + h exactly */
-        int st = me_completed(&m, te, c->me_x, final, &event, &end);
-        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, m.call, st, j);
-        if (event) return fail(k, MK_EVENT, ci, MK_CALL_COMPLETED_STEP, st, j);
-        if (end) *terminate = 1;
-    }
+    const OdeProblem problem = {(SolverKind)c->me_solver,
+                                c->me_memory,
+                                c->me_work,
+                                n,
+                                c->n_event_indicators,
+                                me_rhs,
+                                c->me_state_vrs ? me_jacobian : NULL,
+                                c->n_event_indicators ? me_indicators : NULL,
+                                me_step_done,
+                                me_event,
+                                &m,
+                                c->me_tolerance};
+    long long events = 0;
+    int rc = ode_advance(&problem, c->me_events, t, h, steps, t + c->h, c->me_x, &c->me_next_event, &events);
+    if (rc == ODE_STOP) *terminate = 1;
+    else if (rc == 1) return fail(k, m.status == MK_NEVER_ENDS ? MK_EVENT : MK_FMI_ERROR, ci, m.call, m.status, j);
+    else if (rc != 0) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SOLVER, rc, j);
+    m.call = MK_CALL_ENTER_EVENT_MODE; /* at t + h: its inputs are set and its outputs read there */
+    if (c->me_input_events && rc == 0 && (m.status = ((fmi_mode *)c->enter_event_mode)(c->instance)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, m.call, m.status, j);
     /* the step-start inputs again, as an interpolating FMU has them after its step */
     if (c->n_blocks > c->n_values && c->n_in_real && (m.status = set_real(c, c->in_vrs, c->n_in_real, u, c->n_in_real)) > STATUS_OK)
         return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, m.status, j);
@@ -963,8 +1069,8 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
 static void me_history(mk_component *c, bool save) {
     if (!c->me) return;
     const size_t size = sizeof(double) * solver_memory_size(c->n_states);
-    if (save) memcpy(c->me_memory_saved, c->me_memory, size);
-    else memcpy(c->me_memory, c->me_memory_saved, size);
+    if (save) memcpy(c->me_memory_saved, c->me_memory, size), c->me_next_event_saved = c->me_next_event;
+    else memcpy(c->me_memory, c->me_memory_saved, size), c->me_next_event = c->me_next_event_saved;
 }
 
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */

@@ -50,7 +50,7 @@ enum {
     MK_TOO_LONG = 9,   /* a coupled or recorded String or Binary is longer than MK_TEXT_MAX bytes */
     MK_NOT_CONVERGED = 10, /* an algebraic loop was not solved within its iterations (mk_error: the loop,
                               the residual, the iterations) */
-    MK_EVENT = 11,         /* a Model Exchange FMU asked for event mode (events are not handled yet) */
+    MK_EVENT = 11,         /* a Model Exchange FMU's event iteration does not end (MK_EVENT_ROUNDS rounds) */
     MK_NOT_SETTLED = 12,  /* iterated macro steps: a coupled signal still changed beyond the tolerance
                              after the most sweeps allowed (mk_error: the component, its output with
                              the largest change and that change, the sweeps in `integer`) */
@@ -74,6 +74,9 @@ enum {
      * solver's code, 2: a singular linear system) */
     MK_CALL_SET_TIME, MK_CALL_SET_STATES, MK_CALL_GET_STATES, MK_CALL_GET_DERIVATIVES, MK_CALL_COMPLETED_STEP,
     MK_CALL_DIRECTIONAL_DERIVATIVE, MK_CALL_SOLVER,
+    /* Model Exchange events */
+    MK_CALL_GET_EVENT_INDICATORS, MK_CALL_ENTER_EVENT_MODE, MK_CALL_UPDATE_DISCRETE_STATES,
+    MK_CALL_ENTER_CONTINUOUS_TIME_MODE,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -278,6 +281,24 @@ typedef struct {
     double *me_memory;
     double *me_memory_saved;
     void *me_work;
+    /* Model Exchange events (fmus/solvers/events.c ode_advance): time events met exactly
+     * (me_next_event: the FMU's nextEventTime, INFINITY none; saved in start-up with the history),
+     * the n_event_indicators indicators watched after each step and a sign change located to
+     * me_tolerance s (<= 0: EVENT_TOLERANCE), step events from fmi2/3CompletedIntegratorStep; each
+     * event: enter event mode, the event iteration, the states read back, continuous-time mode, the
+     * history restarted. me_events: an EventWork; *me_event_count counts the events handled. */
+    int32_t n_event_indicators;
+    mk_function get_event_indicators, enter_event_mode, update_discrete_states, enter_continuous_time_mode;
+    double me_next_event;
+    double me_next_event_saved;
+    double me_tolerance;
+    void *me_events;
+    int64_t *me_event_count;
+    /* 1: inputs that FMI lets change in event mode only (discrete ones: Integer, Boolean, String, ...):
+     * the FMU rests in event mode between communication steps (its inputs and outputs set and read
+     * there) and each communication step begins with the event iteration (an input event) and
+     * continuous-time mode; the history restarts only where the states changed. */
+    int32_t me_input_events;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -31,7 +31,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra"]
 # the fixed-step methods and the LU the project's FMUs use (fmus/solvers), linked into the kernel for
 # Model Exchange components and algebraic loops: one implementation (setup.py builds the same)
 FMUS = HERE.parent.parent / "fmus"
-SOLVER_SOURCES = [FMUS / "solvers" / "solvers.c", FMUS / "solvers" / "lu.c"]
+SOLVER_SOURCES = [FMUS / "solvers" / "solvers.c", FMUS / "solvers" / "lu.c", FMUS / "solvers" / "events.c"]
 INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for SolverKind
 
 # mk_run / mk_initial_sweep / mk_record_row codes and failing calls (kernel.h)
@@ -77,6 +77,11 @@ CALLS = (
     "completed_step",
     "directional_derivative",
     "solver",
+    # Model Exchange events
+    "get_event_indicators",
+    "enter_event_mode",
+    "update_discrete_states",
+    "enter_continuous_time_mode",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -293,6 +298,17 @@ class Component(C.Structure):
         ("me_memory", C.POINTER(_f64)),
         ("me_memory_saved", C.POINTER(_f64)),
         ("me_work", _p),
+        ("n_event_indicators", _i32),
+        ("get_event_indicators", _p),
+        ("enter_event_mode", _p),
+        ("update_discrete_states", _p),
+        ("enter_continuous_time_mode", _p),
+        ("me_next_event", _f64),
+        ("me_next_event_saved", _f64),
+        ("me_tolerance", _f64),
+        ("me_events", _p),
+        ("me_event_count", C.POINTER(_i64)),
+        ("me_input_events", _i32),
     ]
 
 
@@ -487,6 +503,10 @@ def library() -> C.CDLL:
     lib.solver_work_new.restype = _p
     lib.solver_work_free.argtypes = [_p]
     lib.solver_work_free.restype = None
+    lib.event_work_new.argtypes = [C.c_int, C.c_int]  # its events' scratch
+    lib.event_work_new.restype = _p
+    lib.event_work_free.argtypes = [_p]
+    lib.event_work_free.restype = None
     lib.solver_memory_size.argtypes = [C.c_int]
     lib.solver_memory_size.restype = C.c_size_t
     return lib

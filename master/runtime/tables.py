@@ -50,7 +50,17 @@ SPIN_S = 200e-6  # s a waiting worker spins before it sleeps in a futex (waking 
 
 Layout = dict[str, tuple[tuple[int, ...], str]]  # array name -> (shape, numpy dtype)
 
-ME_CALLS = ("set_time", "set_states", "get_states", "get_derivatives", "completed_step")
+ME_CALLS = (
+    "set_time",
+    "set_states",
+    "get_states",
+    "get_derivatives",
+    "completed_step",
+    "get_event_indicators",
+    "enter_event_mode",
+    "update_discrete_states",
+    "enter_continuous_time_mode",
+)
 
 
 ANDERSON_MEMORY = 8  # earlier steps a fixed-point loop solve remembers (kernel.h mk_loop)
@@ -471,6 +481,19 @@ class CompiledPlan:
             raise MemoryError(f"{pc.name}: no memory for the solver's work space of {n} states")
         c.me_work = work
         weakref.finalize(self, self.lib.solver_work_free, work)
+        # its events: the time event the initial event iteration asks for comes at exit_initialization
+        c.n_event_indicators = nz = int(fmu.md.numberOfEventIndicators or 0)
+        c.me_next_event = math.inf
+        c.me_tolerance = 0.0  # EVENT_TOLERANCE (fmus/solvers/solvers.h)
+        c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
+        events = self.lib.event_work_new(n, nz)
+        if not events:
+            raise MemoryError(f"{pc.name}: no memory for the event indicators of {n} states, {nz} indicators")
+        c.me_events = events
+        weakref.finalize(self, self.lib.event_work_free, events)
+        # inputs FMI lets change in event mode only: the FMU rests there between its steps (kernel.h)
+        discrete = any(variable(fmu, name).variability != "continuous" for name in in_names)
+        c.me_input_events = int(discrete or c.n_in_string + c.n_in_binary > 0)
 
     def _loop(self, index: int, lp: Loop, fmus: dict[str, Fmu]) -> native.Loop:
         """An algebraic loop's tables (kernel.h mk_loop); where another process steps it, only its
@@ -670,6 +693,15 @@ class CompiledPlan:
         except FmuError as e:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
+        if fmu.model_exchange:  # the time event its initial event iteration asked for
+            c = self.components[self.names.index(name)]
+            c.me_next_event = fmu.next_event_time
+            if c.me_input_events:  # its inputs are set in event mode (kernel.h)
+                try:
+                    fmu.slave.enterEventMode()
+                except FMICallException as e:
+                    t = float(self.plan.scenario.start_time)
+                    raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
 
     def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
         """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as
@@ -804,11 +836,9 @@ class CompiledPlan:
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
         if e.code == native.EVENT:
+            new = FMI_FUNCTIONS["update_discrete_states"][fmu.fmi - 1]
             return SimulationError(
-                f"{name}: the Model Exchange FMU asks for event mode {step}; the master does not handle "
-                "events of Model Exchange FMUs yet",
-                name,
-                t,
+                f"{name}: its event iteration does not end (1000 rounds of {new}) {step}", name, t
             )
         if call == "solver":
             why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
