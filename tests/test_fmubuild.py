@@ -10,6 +10,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from fmpy import read_model_description
 
 from master import fmubuild, solvers
 
@@ -171,3 +172,16 @@ def test_concurrent_builds_produce_one_valid_fmu(sandbox: Path) -> None:
         assert zf.testzip() is None
     leftovers = [p for p in fmubuild.BUILD_DIR.iterdir() if p.name != "dahlquist.fmu"]
     assert leftovers == []
+
+
+def test_model_exchange_only_tables() -> None:
+    """`.me_only = 1` (the models of OMSimulator's Model Exchange scene): descriptions without a
+    CoSimulation element in FMI 2.0 and 3.0, and no FMI 1.0 (Co-Simulation) build."""
+    assert "oms_emachine" in fmubuild.project_fmu_names()
+    assert "oms_emachine" not in fmubuild.project_fmu_names(1)
+    for fmi in (2, 3):
+        md = read_model_description(str(fmubuild.fmu_path("oms_emachine", fmi=fmi)))
+        assert md.modelExchange is not None and md.coSimulation is None
+    with pytest.raises(fmubuild.FmuBuildError) as info:
+        fmubuild.build_fmu("oms_emachine", fmi=1)
+    assert "\n" not in str(info.value) and "offers Model Exchange only" in str(info.value)
