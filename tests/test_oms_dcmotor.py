@@ -157,6 +157,11 @@ def test_implementation_model_exchange_runs_an_fmu_of_both_interfaces_as_model_e
     )
     path.write_text(text)
     assert api.load_scenario(path).component("lag").model_exchange == ModelExchange()
+    chosen = text.replace(
+        "</mm:Settings>", '<mm:Component name="lag" solver="ab3" internalStep="0.025"/></mm:Settings>'
+    )
+    path.write_text(chosen)
+    assert api.load_scenario(path).component("lag").model_exchange == ModelExchange("ab3", Fraction(1, 40))
     assert api.load_scenario(path).component("src").model_exchange is None
     start, end = text.index("<ssd:Annotations>"), text.index("</ssd:Annotations>") + len("</ssd:Annotations>")
     path.write_text(text[:start] + text[end:])

@@ -306,7 +306,9 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
 
 # SSP's implementation attribute of a component: the interface it asks for (absent or "any": either)
 IMPLEMENTATIONS = {"ModelExchange": True, "CoSimulation": False}
-DEFAULT_MODEL_EXCHANGE = "rk4, one step per communication step (the default for Model Exchange)"
+DEFAULT_MODEL_EXCHANGE = (
+    f"{ModelExchange.solver}, one step per communication step (the default for Model Exchange)"
+)
 
 
 def model_exchange(
@@ -315,13 +317,14 @@ def model_exchange(
     """Whether component `name` runs as Model Exchange (modelExchange="true" on its mm:Component
     `ce`, else implementation="ModelExchange" on its ssd:Component, else an FMU without a
     Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
-    asked, said = _bool(attrs.get("modelExchange")), 'modelExchange="false"'
-    elem = ctx.comps[name].elem
-    if asked is None and elem.get("implementation") in IMPLEMENTATIONS:
-        asked, said, ce = IMPLEMENTATIONS[elem.get("implementation")], 'implementation="CoSimulation"', elem
+    asked, where, said = _bool(attrs.get("modelExchange")), ce, 'modelExchange="false"'
+    comp = ctx.comps[name].elem
+    if asked is None and comp.get("implementation") in IMPLEMENTATIONS:
+        asked, where = IMPLEMENTATIONS[comp.get("implementation")], comp
+        said = 'implementation="CoSimulation"'
     only = info is not None and not info.co_simulation
     if asked is False and only:
-        ctx.at(ce, f"{said}: {info.path.name} has no Co-Simulation interface")
+        ctx.at(where, f"{said}: {info.path.name} has no Co-Simulation interface")
     if not (asked or (asked is None and only)):
         if "solver" in attrs or "internalStep" in attrs:
             ctx.at(ce, 'solver and internalStep are for Model Exchange components (modelExchange="true")')
