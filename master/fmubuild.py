@@ -9,7 +9,9 @@ FMI 2.0 (the default) builds ``build/fmus/<name>.fmu`` with the layer's ``fmi2.c
 checked-in ``fmus/<name>/modelDescription.xml`` must equal the generated one.  FMI 3.0
 Model Exchange and Co-Simulation (``fmi=3``) builds ``build/fmus/fmi3/<name>.fmu`` with ``fmi3.c``
 and an FMI 3.0 description generated at build time (not checked in).  A table that uses FMI 3.0
-types or arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only.  FMI 1.0 Co-Simulation
+types or arrays declares ``.fmi3_only = 1`` and builds as FMI 3.0 only; one that declares
+``.me_only = 1`` offers Model Exchange alone (no CoSimulation element, no FMI 1.0 build), as
+tools that export Model Exchange only do.  FMI 1.0 Co-Simulation
 (``fmi=1``) builds ``build/fmus/fmi1/<name>.fmu`` with ``fmi1.c`` (functions prefixed with the
 model identifier) and an FMI 1.0 description generated at build time.  ``build/fmus`` stands for
 BUILD_DIR: that folder in a checkout, the user's cache for an installed package, or
@@ -109,7 +111,9 @@ _INTEGER_RANGES = {
     "Int64": (-(2**63), 2**63 - 1),
     "UInt64": (0, 2**64 - 1),
 }
-_FMI3_ONLY_MARK = re.compile(r"\.fmi3_only\s*=\s*1\b")  # in model.c: see model.h
+# flags of the model table that fmubuild reads from model.c itself (see model.h): `.fmi3_only = 1`
+# builds as FMI 3.0 only, `.me_only = 1` offers Model Exchange only (no FMI 1.0 Co-Simulation build)
+TABLE_FLAGS = ("fmi3_only", "me_only")
 
 
 class FmuBuildError(RuntimeError):
@@ -127,15 +131,18 @@ def _check_fmi(fmi: int) -> None:
 def project_fmu_names(fmi: int = 2) -> list[str]:
     """Names of the subfolders of fmus/ that contain a model.c, sorted: for FMI 2.0 (the default)
     those that build as FMI 2.0, i.e. without the models whose table declares ``.fmi3_only = 1``;
-    for FMI 3.0 all of them; FMI 1.0 as FMI 2.0."""
+    for FMI 3.0 all of them; FMI 1.0 (Co-Simulation) as FMI 2.0 without the ``.me_only = 1`` ones."""
     _check_fmi(fmi)
     names = sorted(p.parent.name for p in FMUS_DIR.glob("*/model.c"))
-    return names if fmi == 3 else [n for n in names if not _declares_fmi3_only(n)]
+    if fmi == 3:
+        return names
+    return [n for n in names if not _declares(n, "fmi3_only") and not (fmi == 1 and _declares(n, "me_only"))]
 
 
-def _declares_fmi3_only(name: str) -> bool:
-    """Whether fmus/<name>/model.c says ``.fmi3_only = 1`` (read from the source: no compiling)."""
-    return bool(_FMI3_ONLY_MARK.search((FMUS_DIR / name / "model.c").read_text(encoding="utf-8")))
+def _declares(name: str, flag: str) -> bool:
+    """Whether fmus/<name>/model.c says ``.<flag> = 1`` (read from the source: no compiling)."""
+    text = (FMUS_DIR / name / "model.c").read_text(encoding="utf-8")
+    return re.search(rf"\.{flag}\s*=\s*1\b", text) is not None
 
 
 def _model_dir(name: str) -> Path:
@@ -242,11 +249,12 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
     feature = _fmi3_feature(desc)
     if feature and not desc["fmi3_only"]:
         problems.append(f"{feature}, which FMI 2.0 lacks: declare `.fmi3_only = 1` in MODEL")
-    if desc["fmi3_only"] != _declares_fmi3_only(name):
-        problems.append(
-            f"MODEL.fmi3_only is {int(desc['fmi3_only'])} but the source does not say `.fmi3_only = "
-            f"{int(desc['fmi3_only'])}` literally (project_fmu_names reads it from there)"
-        )
+    for flag in TABLE_FLAGS:
+        if desc[flag] != _declares(name, flag):
+            problems.append(
+                f"MODEL.{flag} is {int(desc[flag])} but the source does not say `.{flag} = "
+                f"{int(desc[flag])}` literally (project_fmu_names reads it from there)"
+            )
     real_vr = {v["slot"]: vr for vr, v in enumerate(variables) if v["type"] == "Real"}
     state_vrs = {real_vr.get(s) for s in desc["state_slots"]}
     seen_names: set[str] = set()
@@ -450,6 +458,11 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
     reason = _fmi3_only_reason(desc)
     if reason and fmi == 1:
         raise FmuBuildError(f"{FMUS_DIR / name / 'model.c'}: builds as FMI 3.0 only ({reason})")
+    if desc["me_only"] and fmi == 1:
+        raise FmuBuildError(
+            f"{FMUS_DIR / name / 'model.c'}: offers Model Exchange only (.me_only = 1), "
+            "which FMI 1.0 Co-Simulation cannot build"
+        )
     if fmi == 1:
         return _model_description_xml1(name, desc)
     if reason:
@@ -474,23 +487,28 @@ def model_description_xml(name: str, desc: dict[str, Any] | None = None, fmi: in
         "providesDirectionalDerivative": "true",
         "canNotUseMemoryManagementFunctions": "true",
     }
-    me = etree.SubElement(
-        root,
-        "ModelExchange",
-        modelIdentifier=name,
-        completedIntegratorStepNotNeeded="false" if desc["has_step_event"] else "true",
-        **capabilities,
-    )
-    cs = etree.SubElement(
-        root,
-        "CoSimulation",
-        modelIdentifier=name,
-        canHandleVariableCommunicationStepSize="true",
-        canInterpolateInputs="true",
-        maxOutputDerivativeOrder="0",
-        **capabilities,
-    )
-    for element in (me, cs):
+    interfaces = [
+        etree.SubElement(
+            root,
+            "ModelExchange",
+            modelIdentifier=name,
+            completedIntegratorStepNotNeeded="false" if desc["has_step_event"] else "true",
+            **capabilities,
+        )
+    ]
+    if not desc["me_only"]:
+        interfaces.append(
+            etree.SubElement(
+                root,
+                "CoSimulation",
+                modelIdentifier=name,
+                canHandleVariableCommunicationStepSize="true",
+                canInterpolateInputs="true",
+                maxOutputDerivativeOrder="0",
+                **capabilities,
+            )
+        )
+    for element in interfaces:
         files = etree.SubElement(element, "SourceFiles")
         for source in _source_names(name):
             etree.SubElement(files, "File", name=source)
@@ -735,18 +753,19 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         canSerializeFMUState="true",
         providesDirectionalDerivatives="true" if scalars_only else "false",
     )
-    etree.SubElement(
-        root,
-        "CoSimulation",
-        modelIdentifier=name,
-        canGetAndSetFMUState="true",
-        canSerializeFMUState="true",
-        # fmi3GetDirectionalDerivative takes scalar Float64 variables only
-        providesDirectionalDerivatives="true" if scalars_only else "false",
-        canHandleVariableCommunicationStepSize="true",
-        canReturnEarlyAfterIntermediateUpdate="false",
-        hasEventMode="false",
-    )
+    if not desc["me_only"]:
+        etree.SubElement(
+            root,
+            "CoSimulation",
+            modelIdentifier=name,
+            canGetAndSetFMUState="true",
+            canSerializeFMUState="true",
+            # fmi3GetDirectionalDerivative takes scalar Float64 variables only
+            providesDirectionalDerivatives="true" if scalars_only else "false",
+            canHandleVariableCommunicationStepSize="true",
+            canReturnEarlyAfterIntermediateUpdate="false",
+            hasEventMode="false",
+        )
     _unit_definitions(root, {v["unit"] for v in variables if v["unit"]} | {"s"})
     if any(v["type"] == "Solver" for v in variables):
         types = etree.SubElement(root, "TypeDefinitions")

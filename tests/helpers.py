@@ -155,6 +155,9 @@ PROJECT_FMUS = {
     "chassis.fmu": "qt_chassis",  # ecos's quarter truck (20-sim exports: no dependencies declared)
     "wheel.fmu": "qt_wheel",
     "ground.fmu": "qt_ground",
+    "edrive_mass.fmu": "oms_edrive_mass",  # OMSimulator's DC motor (OpenModelica, Model Exchange only)
+    "emachine_model.fmu": "oms_emachine",
+    "stimuli_model.fmu": "oms_stimuli",
 }
 
 # The Simulink export declares Input.Aircraft_State an Enumeration without a variability, so

@@ -115,7 +115,9 @@ def test_project_fmu_validates_and_simulates(name: str) -> None:
     internal_step = next(float(v.start) for v in md.modelVariables if v.name == "internal_step")
     interval = 10 * internal_step if internal_step > 0 else 1e-3
     stop = 20 * interval
-    for fmi_type in ("CoSimulation", "ModelExchange"):
+    me_only = fmubuild._declares(name, "me_only")  # such a model offers Model Exchange alone
+    assert md.modelExchange is not None and (md.coSimulation is None) == me_only
+    for fmi_type in ("ModelExchange",) if me_only else ("CoSimulation", "ModelExchange"):
         result = simulate_fmu(str(path), fmi_type=fmi_type, stop_time=stop, output_interval=interval)
         assert result["time"][-1] == pytest.approx(stop)
         for field in result.dtype.names:

@@ -10,6 +10,9 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 
 from master import fmubuild, solvers
 
@@ -171,3 +174,26 @@ def test_concurrent_builds_produce_one_valid_fmu(sandbox: Path) -> None:
         assert zf.testzip() is None
     leftovers = [p for p in fmubuild.BUILD_DIR.iterdir() if p.name != "dahlquist.fmu"]
     assert leftovers == []
+
+
+def test_model_exchange_only_tables(tmp_path: Path) -> None:
+    """`.me_only = 1` (the models of OMSimulator's Model Exchange scene): descriptions without a
+    CoSimulation element in FMI 2.0 and 3.0, and no FMI 1.0 (Co-Simulation) build."""
+    assert "oms_emachine" in fmubuild.project_fmu_names()
+    assert "oms_emachine" not in fmubuild.project_fmu_names(1)
+    for fmi, slave in ((2, FMU2Slave), (3, FMU3Slave)):
+        path = str(fmubuild.fmu_path("oms_emachine", fmi=fmi))
+        md = read_model_description(path)
+        assert md.modelExchange is not None and md.coSimulation is None
+        fmu = slave(
+            guid=md.guid,
+            unzipDirectory=extract(path, str(tmp_path / str(fmi))),
+            modelIdentifier="oms_emachine",
+            instanceName="m",
+        )
+        with pytest.raises(Exception, match="instantiate"):  # the binary refuses it too
+            fmu.instantiate()
+        fmu.freeLibrary()
+    with pytest.raises(fmubuild.FmuBuildError) as info:
+        fmubuild.build_fmu("oms_emachine", fmi=1)
+    assert "\n" not in str(info.value) and "offers Model Exchange only" in str(info.value)

@@ -63,6 +63,7 @@ int main(void) {
            m->n_integers, m->n_booleans, m->n_strings);
     printf("\"n_int64s\": %d, \"n_uint64s\": %d, \"n_binaries\": %d, \"fmi3_only\": %s,\n", m->n_int64s,
            m->n_uint64s, m->n_binaries, m->fmi3_only ? "true" : "false");
+    printf("\"me_only\": %s,\n", m->me_only ? "true" : "false");
     printf("\"string_capacity\": %d, \"binary_capacity\": %d,\n", STRING_CAPACITY, BINARY_CAPACITY);
     printf("\"n_states\": %d,\n\"state_slots\": ", m->n_states);
     json_ints(m->state_slots, m->n_states);

@@ -57,6 +57,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         if (logger) logger(env, name, fmi2Error, "logError", "fmi2Instantiate: unknown fmuType %d", (int)fmuType);
         return NULL;
     }
+    if (fmuType == fmi2CoSimulation && MODEL.me_only) { /* its description has no CoSimulation */
+        if (logger)
+            logger(env, name, fmi2Error, "logError", "fmi2Instantiate: %s offers Model Exchange only", MODEL.identifier);
+        return NULL;
+    }
     if (!fmuGUID || strcmp(fmuGUID, MODEL.guid) != 0) {
         if (logger)
             logger(env, name, fmi2Error, "logError", "fmi2Instantiate: GUID \"%s\" does not match %s's \"%s\"",

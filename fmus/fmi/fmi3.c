@@ -69,6 +69,12 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
      * returns early and offers no intermediate variables. */
     (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables, (void)intermediateUpdate;
+    if (MODEL.me_only) { /* its description has no CoSimulation */
+        snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers Model Exchange only",
+                 MODEL.identifier);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+        return NULL;
+    }
     if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
         snprintf(message, sizeof message,
                  "fmi3InstantiateCoSimulation: instantiation token \"%s\" does not match %s's \"%s\"",

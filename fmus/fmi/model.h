@@ -118,6 +118,9 @@ typedef struct {
     /* 1: the table uses FMI 3.0 types or arrays and builds as FMI 3.0 only (write it literally,
      * `.fmi3_only = 1`: master/fmubuild.py reads it from the source to list FMI 2.0 models). */
     int fmi3_only;
+    /* 1: the description offers Model Exchange alone (no CoSimulation element, no FMI 1.0 build), as
+     * tools that export Model Exchange only do (write it literally, `.me_only = 1`, as fmi3_only). */
+    int me_only;
 
     /* DefaultExperiment stepSize in seconds (written in the model description); 0: none. */
     double default_step_size;

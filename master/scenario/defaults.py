@@ -1,7 +1,8 @@
 """Settings for a scenario that carries no settings annotation of ours (a file written by another
 tool): the macro step from the command line, else from another tool's step hint in the file, else
 from the FMUs' own DefaultExperiment stepSize; every other setting keeps its default (Jacobi,
-extrapolation order 0, all outputs recorded).
+extrapolation order 0, all outputs recorded); a Model Exchange component is integrated with the
+default method and step (settings.DEFAULT_MODEL_EXCHANGE).
 
 Each component communicates at its own preferred step (libcosim's StepSizeHint, else its FMU's
 stepSize) where that step divides the macro step, else once per macro step.
@@ -16,7 +17,7 @@ from lxml import etree
 from .context import Context
 from .numbers import parse_time
 from .problems import NS_SSC, NS_SSD
-from .settings import MAX_STEP_RATIO, Settings, limit_problems, seconds, steps_problem
+from .settings import MAX_STEP_RATIO, Settings, limit_problems, model_exchange, seconds, steps_problem
 from .xmlio import tag
 
 OSP = "com.opensimulationplatform"  # libcosim / ecos (Open Simulation Platform)
@@ -59,6 +60,8 @@ def choose(
         elif k != 1:
             why = "does not divide it" if k.denominator != 1 or k < 1 else f"is 1/{k} of it: too fine"
             s.origins[f"{name} communication step"] = f"the macro step ({where} {seconds(step)} {why})"
+    for name, comp in ctx.comps.items():  # implementation="ModelExchange", or an FMU with only that
+        model_exchange(ctx, comp.elem, {}, s, name, comp.info)
     if times is not None:
         exp = root.find(tag(NS_SSD, "DefaultExperiment"))
         whole = steps_problem(times[1] - times[0], macro)

@@ -247,9 +247,6 @@ def _fmu(ctx: Context, elem: etree._Element) -> Description | None:
     if elem.get("type", FMU_TYPE) != FMU_TYPE:
         ctx.at(elem, f'type "{elem.get("type")}" is not supported: components must be FMUs ({FMU_TYPE})')
         return None
-    if elem.get("implementation") == "ModelExchange":
-        ctx.at(elem, 'implementation="ModelExchange" is not supported: the master runs co-simulation FMUs')
-        return None
     source = elem.get("source")
     if source is None:
         return None

@@ -283,7 +283,7 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         s.origins[f"{name} communication step"] = "mm:Component" if ce is not None else "the macro step"
         order = _int(attrs.get("extrapolationOrder"))
         s.extrapolation_order[name] = default_order if order is None else order
-        if _model_exchange(ctx, ce if ce is not None else elem, attrs, s, name, comp.info):
+        if model_exchange(ctx, ce if ce is not None else elem, attrs, s, name, comp.info):
             s.interpolate_inputs[name] = False  # its inputs are polynomials at every stage time anyway
             if "group" in attrs:
                 s.group[name] = attrs["group"]
@@ -304,23 +304,38 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
             s.group[name] = attrs["group"]
 
 
-def _model_exchange(
+# SSP's implementation attribute of a component: the interface it asks for (absent or "any": either)
+IMPLEMENTATIONS = {"ModelExchange": True, "CoSimulation": False}
+DEFAULT_MODEL_EXCHANGE = (
+    f"{ModelExchange.solver}, one step per communication step (the default for Model Exchange)"
+)
+
+
+def model_exchange(
     ctx: Context, ce: etree._Element, attrs: dict, s: Settings, name: str, info: Description | None
 ) -> bool:
-    """Whether component `name` runs as Model Exchange (modelExchange="true", or an FMU without a
+    """Whether component `name` runs as Model Exchange (modelExchange="true" on its mm:Component
+    `ce`, else implementation="ModelExchange" on its ssd:Component, else an FMU without a
     Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
-    asked = _bool(attrs.get("modelExchange"))
+    asked, where, said = _bool(attrs.get("modelExchange")), ce, 'modelExchange="false"'
+    comp = ctx.comps[name].elem
+    if asked is None and comp.get("implementation") in IMPLEMENTATIONS:
+        asked, where = IMPLEMENTATIONS[comp.get("implementation")], comp
+        said = 'implementation="CoSimulation"'
     only = info is not None and not info.co_simulation
     if asked is False and only:
-        ctx.at(ce, f'modelExchange="false": {info.path.name} has no Co-Simulation interface')
+        ctx.at(where, f"{said}: {info.path.name} has no Co-Simulation interface")
     if not (asked or (asked is None and only)):
         if "solver" in attrs or "internalStep" in attrs:
             ctx.at(ce, 'solver and internalStep are for Model Exchange components (modelExchange="true")')
         return False
-    me = ModelExchange(attrs.get("solver", ModelExchange.solver), _time(ctx, ce, "internalStep"))
+    step = _time(ctx, ce, "internalStep") if "internalStep" in attrs else None
+    me = ModelExchange(attrs.get("solver", ModelExchange.solver), step)
     for problem in model_exchange_problems(me, s.macro_step / s.step_ratio[name], info):
         ctx.at(ce, problem)
     s.model_exchange[name] = me
+    if "solver" not in attrs and "internalStep" not in attrs:
+        s.origins[f"{name} integration"] = DEFAULT_MODEL_EXCHANGE
     return True
 
 
