@@ -49,7 +49,7 @@ from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
 from master.scenario.model import Scenario, Scheme
 from master.scenario.names import split
-from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
+from master.solvers import AB2, AB3, EULER, NUMBERS, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, SOLVERS
 
 MANTISSAS = (
     1,
@@ -63,6 +63,7 @@ LADDER_DECADES = (-6, 1)  # 1e-6 s ... 50 s
 VARIANTS_OF = 3  # per round, the cheapest families that meet the tolerance get their variants tried
 ROUNDS = 12  # rounds of that coordinate search
 CONTROL_SOLVERS = (EULER, AB2, AB3, SI_EULER, SI_MIDPOINT)
+ALL_SOLVERS = tuple(s.number for s in SOLVERS)  # a Model Exchange component's: any of the six
 MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
 MIN_ROUNDS, MAX_ROUNDS = 3, 15  # interleaved timings of the two cheapest: at least, at most
 SIGNIFICANT = 0.05  # a ratio of medians nearer 1 than this is no difference
@@ -176,12 +177,19 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
         out += [
             dataclasses.replace(c, mech_order=k) for k in (c.mech_order - 1, c.mech_order + 1) if 0 <= k <= 3
         ]
-    out += [dataclasses.replace(c, ctrl_solver=s) for s in CONTROL_SOLVERS if s != c.ctrl_solver]
+    if p.mechanics_me and not c.control_first:  # integrated by the master: its steps, in any coupling
+        out += [dataclasses.replace(c, mech_substeps=m) for m in (c.mech_substeps // 2, 2 * c.mech_substeps)
+                if 1 <= m <= MAX_SUBSTEPS]  # fmt: skip
+    ctrl_solvers = ALL_SOLVERS if p.control_me else CONTROL_SOLVERS
+    out += [dataclasses.replace(c, ctrl_solver=s) for s in ctrl_solvers if s != c.ctrl_solver]
     out += [dataclasses.replace(c, order=k) for k in (c.order - 1, c.order + 1) if 0 <= k <= 3]
     below = [r for r in p.ratios if r < c.ratio - 1][-1:]  # the profile's next ratios, and one either side
     above = [r for r in p.ratios if r > c.ratio + 1][:1]
     out += [dataclasses.replace(c, ratio=r) for r in (*below, c.ratio - 1, c.ratio + 1, *above) if r >= 1]
-    out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
+    if p.mechanics_me:
+        out += [dataclasses.replace(c, mech_solver=s) for s in ALL_SOLVERS if s != c.mech_solver]
+    else:
+        out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
     out.append(dataclasses.replace(c, iterated=not c.iterated))
     return [(_name(v), v) for v in out]
 
@@ -191,6 +199,7 @@ def _name(c: Config) -> str:
         return f"single-rate {SOLVER_NAMES[c.mech_solver]}"
     how = (f", control first, mechanics order {c.mech_order} x{c.mech_substeps}" if c.control_first
            else f", {c.coupling}" if c.coupling else "")  # fmt: skip
+    how += f", mechanics x{c.mech_substeps}" if c.mech_substeps > 1 and not c.control_first else ""
     how += ", iterated" if c.iterated else ""
     return f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}{how}"
 
@@ -201,6 +210,9 @@ MACRO = ("master",)  # the call kind of the master's own work per macro step
 def call_kind(scene: Scenario, comp) -> tuple:
     """What one communication step of a component costs by: the component, its solver, its solver
     steps per communication step, polynomial inputs or not."""
+    me = comp.model_exchange
+    if me is not None:  # integrated by the master: its inputs polynomials at every stage
+        return comp.name, NUMBERS[me.solver], me.substeps(scene.macro_step / comp.step_ratio) or 1, True
     internal = float(comp.parameters.get("internal_step", 0.0) or 0.0)
     substeps = round(float(scene.macro_step) / comp.step_ratio / internal) if internal > 0 else 1
     return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs

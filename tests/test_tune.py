@@ -24,8 +24,8 @@ from master.evidence.oscillator import SET_A, SET_A_Z0
 from master.evidence.reference import reference
 from master.evidence.stability import linearize
 from master.scenario.writer import write_settings
-from master.solvers import SI_MIDPOINT
-from master.tune import CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
+from master.solvers import AB2, AB3, EULER, ITEMS, RK4, SI_MIDPOINT
+from master.tune import MACRO, CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 OSCILLATOR = REPO / "tests" / "scenarios" / "oscillator"
@@ -252,3 +252,58 @@ def test_the_check_grid_of_the_hydraulic_scene_is_every_candidate_step():
     sc = api.load_scenario(REPO / "models" / "hydraulic-manipulator" / "SystemStructure.ssd")
     steps = [h for h in ladder(Fraction(1, 100)) if h >= Fraction(1, 100000)]
     assert check_grid(sc, steps, Fraction(3)) == Fraction(5, 100000)
+
+
+def _as_model_exchange(folder: Path) -> Path:
+    """The oscillator's copy with both masses run as Model Exchange components by the master
+    (mass1 AB3 at the macro step, mass2 Euler at its communication step)."""
+    ssd = folder / "oscillator.ssd"
+    text = ssd.read_text()
+    text = text.replace(
+        '<mm:Component name="mass1" stepRatio="1"',
+        '<mm:Component name="mass1" modelExchange="true" solver="ab3" stepRatio="1"',
+    )
+    text = text.replace('<mm:Component name="mass2" communicationStep="0.0025" interpolateInputs="true"/>',
+                        '<mm:Component name="mass2" modelExchange="true" solver="euler" '
+                        'communicationStep="0.0025"/>')  # fmt: skip
+    ssd.write_text(text)
+    return ssd
+
+
+def test_tune_varies_the_solvers_of_model_exchange_components(tmp_path):
+    """Both masses as Model Exchange: the tune tries every one of the six methods on them (the
+    FMUs' solver parameter is not theirs) and their internal steps, ranks them by their calls;
+    the written scenario runs them as Model Exchange with the chosen methods and steps, within the
+    tolerance of the exact solution, linearly stable."""
+    folder = _copy(tmp_path, OSCILLATOR)
+    sc = api.load_scenario(_as_model_exchange(folder))
+    assert all(c.model_exchange is not None for c in sc.components)
+    tolerance = 1e-3
+    result = tune(sc, tolerance, pilot_time=Fraction(2), repeats=1, rounds=3)
+    assert result.best is not None and result.best.trial.error <= tolerance
+    tried = {(c.mech_solver, c.ctrl_solver, c.mech_substeps) for c in _pilot_configs(result)}
+    assert {m for m, _, _ in tried} >= {AB2, AB3, RK4} and {k for _, k, _ in tried} >= {EULER, RK4}
+    assert any(n > 1 for _, _, n in tried)
+    # the cost model counts the calls of each method: a kind per (component, method, steps, polynomials)
+    assert any(kind[1] == RK4 and kind[3] for kind in result.costs if kind != MACRO)
+
+    out = write_settings(sc, tuned_scenario(result), folder / "tuned.ssd", "test")
+    tuned = api.load_scenario(out)
+    c = result.best.trial.config
+    mass1, mass2 = tuned.component("mass1"), tuned.component("mass2")
+    assert mass1.model_exchange.solver == ITEMS[c.mech_solver]
+    assert mass2.model_exchange.solver == ITEMS[c.ctrl_solver if not c.single_rate else c.mech_solver]
+    assert mass1.model_exchange.substeps(tuned.macro_step) == c.mech_substeps
+    assert mass1.parameters == sc.component("mass1").parameters  # no solver parameter set: not theirs
+    assert api.plan(tuned).describe().count("Model Exchange integrated by the master") == 2
+    over = dataclasses.replace(tuned, stop_time=Fraction(2))  # the pilot's horizon
+    d = api.run(over, backend="serial", record=["mass1.x", "mass1.v"]).data
+    exact = SET_A.exact(d["time"], SET_A_Z0)
+    for col, i in (("mass1.x", 0), ("mass1.v", 1)):
+        scale = float(np.ptp(exact[:, i]))
+        assert np.max(np.abs(d[col] - exact[:, i])) / scale <= tolerance, col
+    _assert_linearly_stable(tuned)
+
+
+def _pilot_configs(result):
+    return [ch.trial.config for ch in result.choices] + [t.config for _, t, _ in result.failed]
