@@ -16,6 +16,9 @@ The search, in the bench's configuration space (master.evidence.bench):
    and solver steps, control solver, order, ratio, mechanics solver, iterated macro steps). A
    scene without a bench profile varies its extrapolation order and coupling, explicit and
    iterated (Gauss-Seidel sweeps: they settle sooner than Jacobi's, at the same fixed point).
+   Model Exchange components, which the master integrates, take the solver of their side from
+   all six methods and their solver steps per macro step as settings of their own (not the FMU's
+   `solver` parameter); in a scene without a profile the coordinate search varies those two.
 2. per family, the largest macro step of a ladder of round steps (1, 1.25, 2, 2.5, 4, 5 x 10^k dividing
    the record interval and the stop time) that meets the tolerance: galloping from the best step
    found so far, then bisection (error grows with the step). A step the linear stability analysis
@@ -145,13 +148,12 @@ def families(p: Profile) -> list[tuple[str, Config]]:
     """The first round of families (named), each a configuration whose macro step the search sets."""
     b = p.base
     if p.generic:
-        plain = [(f"order {k}, {c}", dataclasses.replace(b, order=k, coupling=c, iterated=False))
-                 for c in Scheme for k in range(4)]  # fmt: skip
-        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
-        iterated = [
-            (f"order {k}, gauss-seidel, iterated", dataclasses.replace(swept, order=k)) for k in range(4)
+        plain = [
+            dataclasses.replace(b, order=k, coupling=c, iterated=False) for c in Scheme for k in range(4)
         ]
-        return plain + iterated
+        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
+        iterated = [dataclasses.replace(swept, order=k) for k in range(4)]
+        return [(_generic_name(c), c) for c in plain + iterated]
     out = [(f"single-rate {SOLVER_NAMES[p.baseline.mech_solver]}", p.baseline)]
     for r in p.ratios:
         for k in range(4):
@@ -192,6 +194,22 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
         out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
     out.append(dataclasses.replace(c, iterated=not c.iterated))
     return [(_name(v), v) for v in out]
+
+
+def generic_variants(c: Config) -> list[tuple[str, Config]]:
+    """A family's neighbours in a scene without a profile whose Model Exchange components the
+    master integrates: each of the six methods for them, and half and twice their solver steps."""
+    n = c.me_substeps or 1
+    out = [dataclasses.replace(c, me_solver=s) for s in ALL_SOLVERS if s != c.me_solver]
+    out += [dataclasses.replace(c, me_substeps=m) for m in (n // 2, 2 * n) if 1 <= m <= MAX_SUBSTEPS]
+    return [(_generic_name(v), v) for v in out]
+
+
+def _generic_name(c: Config) -> str:
+    how = f"order {c.order}, {c.coupling}" + (", iterated" if c.iterated else "")
+    if c.me_solver is not None:
+        how += f", model exchange {SOLVER_NAMES[c.me_solver]}"
+    return how + (f" x{c.me_substeps}" if c.me_substeps else "")
 
 
 def _name(c: Config) -> str:
@@ -479,7 +497,8 @@ def _tune(
 
     search(families(p))
     expanded: set[str] = set()
-    for _ in range(0 if p.generic else rounds):  # coordinate search from the best families
+    # a scene without a profile has a coordinate search only where the master integrates components
+    for _ in range(rounds if p.model_exchange or not p.generic else 0):  # from the best families
         # the cheapest dual-rate families within the tolerance, else those nearest to it
         dual = [(ch.family, ch.trial) for ch in rank() if not ch.trial.config.single_rate]
         dual += sorted(((n, t) for n, t, _ in failed if not t.config.single_rate), key=lambda f: f[1].error)
@@ -488,7 +507,7 @@ def _tune(
             break
         for name, t in todo:
             expanded.add(name)
-            search(variants(t.config, p))
+            search(generic_variants(t.config) if p.generic else variants(t.config, p))
     costs = pilot.model.calibrate()  # once: every candidate is ranked by these times
     for ch in choices:
         ch.cost = CostModel.cost(pilot.scene(ch.trial.config), costs, ch.trial.sweeps)

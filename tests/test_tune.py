@@ -24,7 +24,7 @@ from master.evidence.oscillator import SET_A, SET_A_Z0
 from master.evidence.reference import reference
 from master.evidence.stability import linearize
 from master.scenario.writer import write_settings
-from master.solvers import AB2, AB3, EULER, ITEMS, RK4, SI_MIDPOINT
+from master.solvers import AB2, AB3, EULER, ITEMS, RK4, SI_EULER, SI_MIDPOINT
 from master.tune import MACRO, CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -307,3 +307,59 @@ def test_tune_varies_the_solvers_of_model_exchange_components(tmp_path):
 
 def _pilot_configs(result):
     return [ch.trial.config for ch in result.choices] + [t.config for _, t, _ in result.failed]
+
+
+VANDERPOL_SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="vdp"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="vdp">
+    <ssd:Elements>
+      <ssd:Component name="vdp" source="project:vanderpol">
+        <ssd:Connectors>
+          <ssd:Connector name="x1" kind="output"/>
+          <ssd:Connector name="x2" kind="output"/>
+        </ssd:Connectors>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Annotations>
+      <ssc:Annotation type="org.multirate-master.settings">
+        <mm:Settings macroStep="0.01">
+          <mm:Component name="vdp" modelExchange="true" solver="euler" internalStep="0.001"/>
+        </mm:Settings>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="4"/>
+</ssd:SystemStructureDescription>
+"""
+
+
+def test_tune_chooses_the_method_of_a_model_exchange_fmu_in_any_scene(tmp_path):
+    """A scene without a bench profile: vanderpol alone, written for Model Exchange with Euler in
+    steps of 1 ms. The tune tries the six methods and other solver steps per communication step;
+    Euler needs about a hundred times the steps of AB3 for 1e-4 (first against third order), so a
+    higher-order method wins; the written scenario runs it as Model Exchange, within the tolerance
+    of scipy's Radau."""
+    from scipy.integrate import solve_ivp
+
+    (tmp_path / "vdp.ssd").write_text(VANDERPOL_SSD)
+    sc = api.load_scenario(tmp_path / "vdp.ssd")
+    tolerance = 1e-4
+    result = tune(sc, tolerance, repeats=1, rounds=2)
+    assert result.best is not None and result.best.trial.error <= tolerance
+    tried = {c.me_solver for c in _pilot_configs(result)}
+    assert tried == {EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT}
+    chosen = result.best.trial.config
+    assert chosen.me_solver != EULER, result.best.family
+
+    tuned = api.load_scenario(write_settings(sc, tuned_scenario(result), tmp_path / "tuned.ssd", "test"))
+    me = tuned.component("vdp").model_exchange
+    assert me.solver == ITEMS[chosen.me_solver] and me.substeps(tuned.macro_step) == chosen.me_substeps
+    d = api.run(tuned, backend="serial").data
+    x0 = (2.0, 0.0)  # vanderpol's start values, mu = 1
+    ref = solve_ivp(lambda t, x: [x[1], (1 - x[0] ** 2) * x[1] - x[0]], (0, 4), x0, method="Radau",
+                    t_eval=d["time"], rtol=1e-11, atol=1e-13).y  # fmt: skip
+    for col, exact in (("vdp.x1", ref[0]), ("vdp.x2", ref[1])):
+        assert np.max(np.abs(d[col] - exact)) / float(np.ptp(exact)) <= tolerance, col

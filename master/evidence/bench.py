@@ -37,8 +37,8 @@ from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
-from master.scenario.model import Iteration, ModelExchange, Scenario, Scheme
-from master.solvers import AB2, AB3, EULER, ITEMS, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
+from master.scenario.model import Component, Iteration, ModelExchange, Scenario, Scheme
+from master.solvers import AB2, AB3, EULER, ITEMS, NUMBERS, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
 GENERIC_FAMILIES = ("scene", "macro-step", "order", "coupling", "backend")  # sweeps of generic_profile
 
@@ -65,6 +65,10 @@ class Config:
     # iterated macro steps (strong coupling): each repeated from saved states until the coupled
     # signals settle (the scene's mm:Iteration, else the defaults of Iteration)
     iterated: bool = False
+    # a scene without a profile: its Model Exchange components' method and solver steps per
+    # communication step (None: each component's own, its steps counted at the scene's macro step)
+    me_solver: int | None = None
+    me_substeps: int | None = None
 
     def __post_init__(self) -> None:
         if self.family == "single-rate":
@@ -174,7 +178,12 @@ def generic_profile(sc: Scenario) -> Profile:
     (a multiple of 2 H, so that every swept step hits it) against the reference solution."""
     H = sc.macro_step
     order = max((c.extrapolation_order for c in sc.components), default=0)
-    base = Config("scene", H, order=order, iterated=sc.iteration is not None)
+    integrated = [c for c in sc.components if c.model_exchange is not None]
+    methods = {NUMBERS[c.model_exchange.solver] for c in integrated}  # one each where they agree
+    counts = {c.model_exchange.substeps(H / c.step_ratio) or 1 for c in integrated}
+    base = Config("scene", H, order=order, iterated=sc.iteration is not None,
+                  me_solver=methods.pop() if len(methods) == 1 else None,
+                  me_substeps=counts.pop() if len(counts) == 1 else None)  # fmt: skip
     return Profile(
         mechanics=tuple(c.name for c in sc.components),
         control=(),
@@ -251,8 +260,11 @@ def _unique(configs: list[Config]) -> list[Config]:
 
 def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     """The scene with the configuration's steps, ratios, orders and solvers."""
-    if p.generic:  # its own FMUs and ratios: only the macro step, the orders and the coupling change
-        comps = tuple(dataclasses.replace(comp, extrapolation_order=c.order) for comp in sc.components)
+    if p.generic:  # its own FMUs and ratios: the macro step, the orders, the coupling, the ME methods change
+        comps = tuple(
+            dataclasses.replace(comp, extrapolation_order=c.order, model_exchange=_integrated(sc, comp, c))
+            for comp in sc.components
+        )
         conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
         coupling = c.coupling or sc.coupling
         return dataclasses.replace(
@@ -306,6 +318,18 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         record_interval=lcm(p.record_interval, c.macro_step),
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
     )
+
+
+def _integrated(sc: Scenario, comp: Component, c: Config) -> ModelExchange | None:
+    """How the master integrates a Model Exchange component of a scene without a profile: the
+    configuration's method, and its solver steps per communication step (the component's own count
+    at the scene's macro step unless the configuration sets one), whatever the macro step."""
+    me = comp.model_exchange
+    if me is None:
+        return None
+    n = c.me_substeps or me.substeps(sc.macro_step / comp.step_ratio) or 1
+    step = c.macro_step / comp.step_ratio
+    return ModelExchange(ITEMS[c.me_solver] if c.me_solver else me.solver, step / n if n > 1 else None)
 
 
 def iteration(sc: Scenario, c: Config) -> Iteration | None:
