@@ -363,3 +363,24 @@ def test_tune_chooses_the_method_of_a_model_exchange_fmu_in_any_scene(tmp_path):
                     t_eval=d["time"], rtol=1e-11, atol=1e-13).y  # fmt: skip
     for col, exact in (("vdp.x1", ref[0]), ("vdp.x2", ref[1])):
         assert np.max(np.abs(d[col] - exact)) / float(np.ptp(exact)) <= tolerance, col
+
+
+def test_the_linear_model_of_a_tune_steps_model_exchange_components_as_the_runtime(tmp_path):
+    """The stability check of each candidate takes the scene linearised once and sets each
+    configuration's methods, steps and input modes on it (bench.linear_scheme): for Model
+    Exchange components (inputs polynomials at every stage, their solver steps) it is the scene of
+    that configuration linearised as the runtime plans it."""
+    from master.evidence.linear import spectral_radius
+
+    sc = api.load_scenario(_as_model_exchange(_copy(tmp_path, OSCILLATOR)))
+    p = bench.profile_for(sc)
+    assert p.model_exchange == ("mass1", "mass2")
+    lin = bench.linearize_scene(sc, p)
+    for change in ({}, {"mech_solver": RK4, "mech_substeps": 4}, {"ctrl_solver": SI_MIDPOINT, "ratio": 2},
+                   {"order": 3, "mech_solver": AB2, "mech_substeps": 2}):  # fmt: skip
+        c = dataclasses.replace(p.base, **change)
+        scheme = bench.linear_scheme(lin, p, c)
+        assert all(comp.model_exchange and comp.input_mode == "polynomial" for comp in scheme.components)
+        direct = linearize(bench.apply(sc, p, c), t=p.linearize_at)
+        h = float(c.macro_step)
+        assert spectral_radius(scheme, h) == pytest.approx(spectral_radius(direct, h), rel=1e-9), change
