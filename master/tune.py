@@ -16,6 +16,9 @@ The search, in the bench's configuration space (master.evidence.bench):
    and solver steps, control solver, order, ratio, mechanics solver, iterated macro steps). A
    scene without a bench profile varies its extrapolation order and coupling, explicit and
    iterated (Gauss-Seidel sweeps: they settle sooner than Jacobi's, at the same fixed point).
+   Model Exchange components, which the master integrates, take the solver of their side from
+   all six methods and their solver steps per macro step as settings of their own (not the FMU's
+   `solver` parameter); in a scene without a profile the coordinate search varies those two.
 2. per family, the largest macro step of a ladder of round steps (1, 1.25, 2, 2.5, 4, 5 x 10^k dividing
    the record interval and the stop time) that meets the tolerance: galloping from the best step
    found so far, then bisection (error grows with the step). A step the linear stability analysis
@@ -49,7 +52,7 @@ from master.evidence.errors import as_trajectory, compare
 from master.evidence.reference import Reference
 from master.scenario.model import Scenario, Scheme
 from master.scenario.names import split
-from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
+from master.solvers import AB2, AB3, EULER, NUMBERS, SI_EULER, SI_MIDPOINT, SOLVER_NAMES, SOLVERS
 
 MANTISSAS = (
     1,
@@ -63,6 +66,7 @@ LADDER_DECADES = (-6, 1)  # 1e-6 s ... 50 s
 VARIANTS_OF = 3  # per round, the cheapest families that meet the tolerance get their variants tried
 ROUNDS = 12  # rounds of that coordinate search
 CONTROL_SOLVERS = (EULER, AB2, AB3, SI_EULER, SI_MIDPOINT)
+ALL_SOLVERS = tuple(s.number for s in SOLVERS)  # a Model Exchange component's: any of the six
 MAX_SUBSTEPS = 16  # mechanics solver steps per macro step, at most
 MIN_ROUNDS, MAX_ROUNDS = 3, 15  # interleaved timings of the two cheapest: at least, at most
 SIGNIFICANT = 0.05  # a ratio of medians nearer 1 than this is no difference
@@ -144,13 +148,12 @@ def families(p: Profile) -> list[tuple[str, Config]]:
     """The first round of families (named), each a configuration whose macro step the search sets."""
     b = p.base
     if p.generic:
-        plain = [(f"order {k}, {c}", dataclasses.replace(b, order=k, coupling=c, iterated=False))
-                 for c in Scheme for k in range(4)]  # fmt: skip
-        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
-        iterated = [
-            (f"order {k}, gauss-seidel, iterated", dataclasses.replace(swept, order=k)) for k in range(4)
+        plain = [
+            dataclasses.replace(b, order=k, coupling=c, iterated=False) for c in Scheme for k in range(4)
         ]
-        return plain + iterated
+        swept = dataclasses.replace(b, coupling=Scheme.GAUSS_SEIDEL, iterated=True)
+        iterated = [dataclasses.replace(swept, order=k) for k in range(4)]
+        return [(_generic_name(c), c) for c in plain + iterated]
     out = [(f"single-rate {SOLVER_NAMES[p.baseline.mech_solver]}", p.baseline)]
     for r in p.ratios:
         for k in range(4):
@@ -176,14 +179,37 @@ def variants(c: Config, p: Profile) -> list[tuple[str, Config]]:
         out += [
             dataclasses.replace(c, mech_order=k) for k in (c.mech_order - 1, c.mech_order + 1) if 0 <= k <= 3
         ]
-    out += [dataclasses.replace(c, ctrl_solver=s) for s in CONTROL_SOLVERS if s != c.ctrl_solver]
+    if p.mechanics_me and not c.control_first:  # integrated by the master: its steps, in any coupling
+        out += [dataclasses.replace(c, mech_substeps=m) for m in (c.mech_substeps // 2, 2 * c.mech_substeps)
+                if 1 <= m <= MAX_SUBSTEPS]  # fmt: skip
+    ctrl_solvers = ALL_SOLVERS if p.control_me else CONTROL_SOLVERS
+    out += [dataclasses.replace(c, ctrl_solver=s) for s in ctrl_solvers if s != c.ctrl_solver]
     out += [dataclasses.replace(c, order=k) for k in (c.order - 1, c.order + 1) if 0 <= k <= 3]
     below = [r for r in p.ratios if r < c.ratio - 1][-1:]  # the profile's next ratios, and one either side
     above = [r for r in p.ratios if r > c.ratio + 1][:1]
     out += [dataclasses.replace(c, ratio=r) for r in (*below, c.ratio - 1, c.ratio + 1, *above) if r >= 1]
-    out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
+    if p.mechanics_me:
+        out += [dataclasses.replace(c, mech_solver=s) for s in ALL_SOLVERS if s != c.mech_solver]
+    else:
+        out.append(dataclasses.replace(c, mech_solver=AB2 if c.mech_solver == AB3 else AB3))
     out.append(dataclasses.replace(c, iterated=not c.iterated))
     return [(_name(v), v) for v in out]
+
+
+def generic_variants(c: Config) -> list[tuple[str, Config]]:
+    """A family's neighbours in a scene without a profile whose Model Exchange components the
+    master integrates: each of the six methods for them, and half and twice their solver steps."""
+    n = c.me_substeps or 1
+    out = [dataclasses.replace(c, me_solver=s) for s in ALL_SOLVERS if s != c.me_solver]
+    out += [dataclasses.replace(c, me_substeps=m) for m in (n // 2, 2 * n) if 1 <= m <= MAX_SUBSTEPS]
+    return [(_generic_name(v), v) for v in out]
+
+
+def _generic_name(c: Config) -> str:
+    how = f"order {c.order}, {c.coupling}" + (", iterated" if c.iterated else "")
+    if c.me_solver is not None:
+        how += f", model exchange {SOLVER_NAMES[c.me_solver]}"
+    return how + (f" x{c.me_substeps}" if c.me_substeps else "")
 
 
 def _name(c: Config) -> str:
@@ -191,6 +217,7 @@ def _name(c: Config) -> str:
         return f"single-rate {SOLVER_NAMES[c.mech_solver]}"
     how = (f", control first, mechanics order {c.mech_order} x{c.mech_substeps}" if c.control_first
            else f", {c.coupling}" if c.coupling else "")  # fmt: skip
+    how += f", mechanics x{c.mech_substeps}" if c.mech_substeps > 1 and not c.control_first else ""
     how += ", iterated" if c.iterated else ""
     return f"{SOLVER_NAMES[c.mech_solver]} + {SOLVER_NAMES[c.ctrl_solver]} r={c.ratio}, order {c.order}{how}"
 
@@ -201,6 +228,9 @@ MACRO = ("master",)  # the call kind of the master's own work per macro step
 def call_kind(scene: Scenario, comp) -> tuple:
     """What one communication step of a component costs by: the component, its solver, its solver
     steps per communication step, polynomial inputs or not."""
+    me = comp.model_exchange
+    if me is not None:  # integrated by the master: its inputs polynomials at every stage
+        return comp.name, NUMBERS[me.solver], me.substeps(scene.macro_step / comp.step_ratio) or 1, True
     internal = float(comp.parameters.get("internal_step", 0.0) or 0.0)
     substeps = round(float(scene.macro_step) / comp.step_ratio / internal) if internal > 0 else 1
     return comp.name, comp.parameters.get("solver"), substeps, comp.interpolate_inputs
@@ -467,7 +497,8 @@ def _tune(
 
     search(families(p))
     expanded: set[str] = set()
-    for _ in range(0 if p.generic else rounds):  # coordinate search from the best families
+    # a scene without a profile has a coordinate search only where the master integrates components
+    for _ in range(rounds if p.model_exchange or not p.generic else 0):  # from the best families
         # the cheapest dual-rate families within the tolerance, else those nearest to it
         dual = [(ch.family, ch.trial) for ch in rank() if not ch.trial.config.single_rate]
         dual += sorted(((n, t) for n, t, _ in failed if not t.config.single_rate), key=lambda f: f[1].error)
@@ -476,7 +507,7 @@ def _tune(
             break
         for name, t in todo:
             expanded.add(name)
-            search(variants(t.config, p))
+            search(generic_variants(t.config) if p.generic else variants(t.config, p))
     costs = pilot.model.calibrate()  # once: every candidate is ranked by these times
     for ch in choices:
         ch.cost = CostModel.cost(pilot.scene(ch.trial.config), costs, ch.trial.sweeps)

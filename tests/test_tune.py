@@ -24,8 +24,8 @@ from master.evidence.oscillator import SET_A, SET_A_Z0
 from master.evidence.reference import reference
 from master.evidence.stability import linearize
 from master.scenario.writer import write_settings
-from master.solvers import SI_MIDPOINT
-from master.tune import CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
+from master.solvers import AB2, AB3, EULER, ITEMS, RK4, SI_EULER, SI_MIDPOINT
+from master.tune import MACRO, CostModel, check_grid, families, ladder, pilot_for, tune, tuned_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 OSCILLATOR = REPO / "tests" / "scenarios" / "oscillator"
@@ -252,3 +252,135 @@ def test_the_check_grid_of_the_hydraulic_scene_is_every_candidate_step():
     sc = api.load_scenario(REPO / "models" / "hydraulic-manipulator" / "SystemStructure.ssd")
     steps = [h for h in ladder(Fraction(1, 100)) if h >= Fraction(1, 100000)]
     assert check_grid(sc, steps, Fraction(3)) == Fraction(5, 100000)
+
+
+def _as_model_exchange(folder: Path) -> Path:
+    """The oscillator's copy with both masses run as Model Exchange components by the master
+    (mass1 AB3 at the macro step, mass2 Euler at its communication step)."""
+    ssd = folder / "oscillator.ssd"
+    text = ssd.read_text()
+    text = text.replace(
+        '<mm:Component name="mass1" stepRatio="1"',
+        '<mm:Component name="mass1" modelExchange="true" solver="ab3" stepRatio="1"',
+    )
+    text = text.replace('<mm:Component name="mass2" communicationStep="0.0025" interpolateInputs="true"/>',
+                        '<mm:Component name="mass2" modelExchange="true" solver="euler" '
+                        'communicationStep="0.0025"/>')  # fmt: skip
+    ssd.write_text(text)
+    return ssd
+
+
+def test_tune_varies_the_solvers_of_model_exchange_components(tmp_path):
+    """Both masses as Model Exchange: the tune tries every one of the six methods on them (the
+    FMUs' solver parameter is not theirs) and their internal steps, ranks them by their calls;
+    the written scenario runs them as Model Exchange with the chosen methods and steps, within the
+    tolerance of the exact solution, linearly stable."""
+    folder = _copy(tmp_path, OSCILLATOR)
+    sc = api.load_scenario(_as_model_exchange(folder))
+    assert all(c.model_exchange is not None for c in sc.components)
+    tolerance = 1e-3
+    result = tune(sc, tolerance, pilot_time=Fraction(2), repeats=1, rounds=3)
+    assert result.best is not None and result.best.trial.error <= tolerance
+    tried = {(c.mech_solver, c.ctrl_solver, c.mech_substeps) for c in _pilot_configs(result)}
+    assert {m for m, _, _ in tried} >= {AB2, AB3, RK4} and {k for _, k, _ in tried} >= {EULER, RK4}
+    assert any(n > 1 for _, _, n in tried)
+    # the cost model counts the calls of each method: a kind per (component, method, steps, polynomials)
+    assert any(kind[1] == RK4 and kind[3] for kind in result.costs if kind != MACRO)
+
+    out = write_settings(sc, tuned_scenario(result), folder / "tuned.ssd", "test")
+    tuned = api.load_scenario(out)
+    c = result.best.trial.config
+    mass1, mass2 = tuned.component("mass1"), tuned.component("mass2")
+    assert mass1.model_exchange.solver == ITEMS[c.mech_solver]
+    assert mass2.model_exchange.solver == ITEMS[c.ctrl_solver if not c.single_rate else c.mech_solver]
+    assert mass1.model_exchange.substeps(tuned.macro_step) == c.mech_substeps
+    assert mass1.parameters == sc.component("mass1").parameters  # no solver parameter set: not theirs
+    assert api.plan(tuned).describe().count("Model Exchange integrated by the master") == 2
+    over = dataclasses.replace(tuned, stop_time=Fraction(2))  # the pilot's horizon
+    d = api.run(over, backend="serial", record=["mass1.x", "mass1.v"]).data
+    exact = SET_A.exact(d["time"], SET_A_Z0)
+    for col, i in (("mass1.x", 0), ("mass1.v", 1)):
+        scale = float(np.ptp(exact[:, i]))
+        assert np.max(np.abs(d[col] - exact[:, i])) / scale <= tolerance, col
+    _assert_linearly_stable(tuned)
+
+
+def _pilot_configs(result):
+    return [ch.trial.config for ch in result.choices] + [t.config for _, t, _ in result.failed]
+
+
+VANDERPOL_SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="vdp"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:mm="urn:org.multirate-master:settings:1">
+  <ssd:System name="vdp">
+    <ssd:Elements>
+      <ssd:Component name="vdp" source="project:vanderpol">
+        <ssd:Connectors>
+          <ssd:Connector name="x1" kind="output"/>
+          <ssd:Connector name="x2" kind="output"/>
+        </ssd:Connectors>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Annotations>
+      <ssc:Annotation type="org.multirate-master.settings">
+        <mm:Settings macroStep="0.01">
+          <mm:Component name="vdp" modelExchange="true" solver="euler" internalStep="0.001"/>
+        </mm:Settings>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="4"/>
+</ssd:SystemStructureDescription>
+"""
+
+
+def test_tune_chooses_the_method_of_a_model_exchange_fmu_in_any_scene(tmp_path):
+    """A scene without a bench profile: vanderpol alone, written for Model Exchange with Euler in
+    steps of 1 ms. The tune tries the six methods and other solver steps per communication step;
+    Euler needs about a hundred times the steps of AB3 for 1e-4 (first against third order), so a
+    higher-order method wins; the written scenario runs it as Model Exchange, within the tolerance
+    of scipy's Radau."""
+    from scipy.integrate import solve_ivp
+
+    (tmp_path / "vdp.ssd").write_text(VANDERPOL_SSD)
+    sc = api.load_scenario(tmp_path / "vdp.ssd")
+    tolerance = 1e-4
+    result = tune(sc, tolerance, repeats=1, rounds=2)
+    assert result.best is not None and result.best.trial.error <= tolerance
+    tried = {c.me_solver for c in _pilot_configs(result)}
+    assert tried == {EULER, AB2, AB3, RK4, SI_EULER, SI_MIDPOINT}
+    chosen = result.best.trial.config
+    assert chosen.me_solver != EULER, result.best.family
+
+    tuned = api.load_scenario(write_settings(sc, tuned_scenario(result), tmp_path / "tuned.ssd", "test"))
+    me = tuned.component("vdp").model_exchange
+    assert me.solver == ITEMS[chosen.me_solver] and me.substeps(tuned.macro_step) == chosen.me_substeps
+    d = api.run(tuned, backend="serial").data
+    x0 = (2.0, 0.0)  # vanderpol's start values, mu = 1
+    ref = solve_ivp(lambda t, x: [x[1], (1 - x[0] ** 2) * x[1] - x[0]], (0, 4), x0, method="Radau",
+                    t_eval=d["time"], rtol=1e-11, atol=1e-13).y  # fmt: skip
+    for col, exact in (("vdp.x1", ref[0]), ("vdp.x2", ref[1])):
+        assert np.max(np.abs(d[col] - exact)) / float(np.ptp(exact)) <= tolerance, col
+
+
+def test_the_linear_model_of_a_tune_steps_model_exchange_components_as_the_runtime(tmp_path):
+    """The stability check of each candidate takes the scene linearised once and sets each
+    configuration's methods, steps and input modes on it (bench.linear_scheme): for Model
+    Exchange components (inputs polynomials at every stage, their solver steps) it is the scene of
+    that configuration linearised as the runtime plans it."""
+    from master.evidence.linear import spectral_radius
+
+    sc = api.load_scenario(_as_model_exchange(_copy(tmp_path, OSCILLATOR)))
+    p = bench.profile_for(sc)
+    assert p.model_exchange == ("mass1", "mass2")
+    lin = bench.linearize_scene(sc, p)
+    for change in ({}, {"mech_solver": RK4, "mech_substeps": 4}, {"ctrl_solver": SI_MIDPOINT, "ratio": 2},
+                   {"order": 3, "mech_solver": AB2, "mech_substeps": 2}):  # fmt: skip
+        c = dataclasses.replace(p.base, **change)
+        scheme = bench.linear_scheme(lin, p, c)
+        assert all(comp.model_exchange and comp.input_mode == "polynomial" for comp in scheme.components)
+        direct = linearize(bench.apply(sc, p, c), t=p.linearize_at)
+        h = float(c.macro_step)
+        assert spectral_radius(scheme, h) == pytest.approx(spectral_radius(direct, h), rel=1e-9), change

@@ -37,8 +37,8 @@ from master.evidence.errors import Trajectory, as_trajectory, compare
 from master.evidence.linear import LinearScheme, spectral_radius
 from master.evidence.reference import ReferenceFailed, solve
 from master.evidence.stability import linearize
-from master.scenario.model import Iteration, Scenario, Scheme
-from master.solvers import AB2, AB3, EULER, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
+from master.scenario.model import Component, Iteration, ModelExchange, Scenario, Scheme
+from master.solvers import AB2, AB3, EULER, ITEMS, NUMBERS, SI_EULER, SI_MIDPOINT, SOLVER_NAMES
 
 GENERIC_FAMILIES = ("scene", "macro-step", "order", "coupling", "backend")  # sweeps of generic_profile
 
@@ -65,6 +65,10 @@ class Config:
     # iterated macro steps (strong coupling): each repeated from saved states until the coupled
     # signals settle (the scene's mm:Iteration, else the defaults of Iteration)
     iterated: bool = False
+    # a scene without a profile: its Model Exchange components' method and solver steps per
+    # communication step (None: each component's own, its steps counted at the scene's macro step)
+    me_solver: int | None = None
+    me_substeps: int | None = None
 
     def __post_init__(self) -> None:
         if self.family == "single-rate":
@@ -104,6 +108,15 @@ class Profile:
     linearize_at: float = 0.1  # s: operating point of the linear stability analysis
     variables: tuple[str, ...] | None = None  # the error's variables (None: all recorded)
     generic: bool = False  # a scene without a profile: its own FMUs, steps and ratios swept as they are
+    model_exchange: tuple[str, ...] = ()  # its components the master integrates (Model Exchange)
+
+    @property
+    def mechanics_me(self) -> bool:
+        return any(name in self.model_exchange for name in self.mechanics)
+
+    @property
+    def control_me(self) -> bool:
+        return any(name in self.model_exchange for name in self.control)
 
 
 F = Fraction
@@ -151,10 +164,11 @@ PROFILES: dict[str, Profile] = {
 def profile_for(sc: Scenario) -> Profile:
     """The bench profile of a scene, by scenario name or folder name; for any other scene one
     derived from the scenario itself (`generic_profile`)."""
+    me = tuple(c.name for c in sc.components if c.model_exchange is not None)
     for key in (sc.name, Path(sc.path).parent.name, Path(sc.path).stem):
         if key in PROFILES:
-            return PROFILES[key]
-    return generic_profile(sc)
+            return dataclasses.replace(PROFILES[key], model_exchange=me)
+    return dataclasses.replace(generic_profile(sc), model_exchange=me)
 
 
 def generic_profile(sc: Scenario) -> Profile:
@@ -164,7 +178,12 @@ def generic_profile(sc: Scenario) -> Profile:
     (a multiple of 2 H, so that every swept step hits it) against the reference solution."""
     H = sc.macro_step
     order = max((c.extrapolation_order for c in sc.components), default=0)
-    base = Config("scene", H, order=order, iterated=sc.iteration is not None)
+    integrated = [c for c in sc.components if c.model_exchange is not None]
+    methods = {NUMBERS[c.model_exchange.solver] for c in integrated}  # one each where they agree
+    counts = {c.model_exchange.substeps(H / c.step_ratio) or 1 for c in integrated}
+    base = Config("scene", H, order=order, iterated=sc.iteration is not None,
+                  me_solver=methods.pop() if len(methods) == 1 else None,
+                  me_substeps=counts.pop() if len(counts) == 1 else None)  # fmt: skip
     return Profile(
         mechanics=tuple(c.name for c in sc.components),
         control=(),
@@ -241,8 +260,11 @@ def _unique(configs: list[Config]) -> list[Config]:
 
 def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
     """The scene with the configuration's steps, ratios, orders and solvers."""
-    if p.generic:  # its own FMUs and ratios: only the macro step, the orders and the coupling change
-        comps = tuple(dataclasses.replace(comp, extrapolation_order=c.order) for comp in sc.components)
+    if p.generic:  # its own FMUs and ratios: the macro step, the orders, the coupling, the ME methods change
+        comps = tuple(
+            dataclasses.replace(comp, extrapolation_order=c.order, model_exchange=_integrated(sc, comp, c))
+            for comp in sc.components
+        )
         conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
         coupling = c.coupling or sc.coupling
         return dataclasses.replace(
@@ -265,6 +287,10 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         mech = comp.name in p.mechanics and c.control_first
         substep = float(c.macro_step) / c.mech_substeps if mech and c.mech_substeps > 1 else 0.0
         params = {**comp.parameters, "solver": solver, "internal_step": substep}
+        me = comp.model_exchange
+        if me is not None:  # the master integrates it: the method and steps are its own settings
+            params, n = comp.parameters, c.mech_substeps if comp.name in p.mechanics else 1
+            me = ModelExchange(ITEMS[solver], c.macro_step / n if n > 1 else None)
         comps.append(
             dataclasses.replace(
                 comp,
@@ -272,7 +298,8 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
                 step_ratio=c.ratio if ctrl else 1,
                 # the control side extrapolates the mechanics; the mechanics hold, or interpolate
                 extrapolation_order=c.order if ctrl else c.mech_order if mech else 0,
-                interpolate_inputs=substep > 0,
+                interpolate_inputs=substep > 0 and me is None,
+                model_exchange=me,
             )
         )
     conns = tuple(dataclasses.replace(cn, extrapolation_order=None) for cn in sc.connections)
@@ -291,6 +318,18 @@ def apply(sc: Scenario, p: Profile, c: Config) -> Scenario:
         record_interval=lcm(p.record_interval, c.macro_step),
         stop_time=p.stop_time if p.stop_time is not None else sc.stop_time,
     )
+
+
+def _integrated(sc: Scenario, comp: Component, c: Config) -> ModelExchange | None:
+    """How the master integrates a Model Exchange component of a scene without a profile: the
+    configuration's method, and its solver steps per communication step (the component's own count
+    at the scene's macro step unless the configuration sets one), whatever the macro step."""
+    me = comp.model_exchange
+    if me is None:
+        return None
+    n = c.me_substeps or me.substeps(sc.macro_step / comp.step_ratio) or 1
+    step = c.macro_step / comp.step_ratio
+    return ModelExchange(ITEMS[c.me_solver] if c.me_solver else me.solver, step / n if n > 1 else None)
 
 
 def iteration(sc: Scenario, c: Config) -> Iteration | None:
@@ -333,10 +372,11 @@ def linear_scheme(lin: LinearScheme, p: Profile, c: Config) -> LinearScheme:
     for comp in lin.components:
         ctrl = comp.name in p.control and not c.single_rate
         mech = comp.name in p.mechanics and c.control_first
-        mode = "polynomial" if mech and c.mech_substeps > 1 else "hold"
+        mode = "polynomial" if comp.model_exchange or (mech and c.mech_substeps > 1) else "hold"
+        stepped = mech or (comp.model_exchange and comp.name in p.mechanics)  # as `apply` steps it
         comps.append(dataclasses.replace(comp, solver=c.ctrl_solver if ctrl else c.mech_solver,
                                          step_ratio=c.ratio if ctrl else 1,
-                                         substeps=c.mech_substeps if mech else 1,
+                                         substeps=c.mech_substeps if stepped else 1,
                                          order=c.order if ctrl else c.mech_order if mech else 0,
                                          input_mode=mode))  # fmt: skip
     coupling = (

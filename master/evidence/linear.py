@@ -53,6 +53,7 @@ class LinearComponent:
     substeps: int = 1
     order: int | None = None  # extrapolation order of its inputs (None: the scheme's)
     input_mode: str | None = None  # "hold" or "polynomial" (None: the scheme's `inputs`)
+    model_exchange: bool = False  # integrated by the master: its inputs polynomials at every stage
 
 
 @dataclass(frozen=True)

@@ -125,9 +125,10 @@ def linearize(scenario: Scenario, t: float = 0.0, order: int | None = None) -> L
             if pc.model_exchange:  # the master integrates it: its method, its steps, inputs at every stage
                 me = pc.model_exchange
                 solver, substeps, mode = NUMBERS[me.solver], me.substeps(pc.step) or 1, "polynomial"
+            me = pc.model_exchange is not None
             comps.append(LinearComponent(comp.name, a, b, c, d, tuple(ins), tuple(outs), solver=solver,
                                          step_ratio=pc.step_ratio, substeps=substeps, order=k_in,
-                                         input_mode=mode))  # fmt: skip
+                                         input_mode=mode, model_exchange=me))  # fmt: skip
         conns = tuple((c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in scenario.connections)  # fmt: skip
         k = order if order is not None else max(c.extrapolation_order for c in scenario.components)
