@@ -22,7 +22,7 @@ from master.scenario.fmuinfo import (
     recordable,
     recorded_as,
 )
-from master.scenario.loops import cycle_in, strongly_connected
+from master.scenario.loops import cycle_in, port_graph, strongly_connected
 from master.scenario.model import Iteration, ModelExchange, Scenario, Scheme, Stimulus, Transformation
 
 EXACT = 2**53  # clock integers at or beyond this would not convert to float exactly
@@ -439,17 +439,18 @@ def _loops(
         for n, (o, i) in enumerate(zip(lk.outputs, lk.inputs, strict=True))
         for t in [lk.transformations[n] if lk.transformations else None]
     ]
-    edges: dict[tuple[str, str], list[tuple[str, str]]] = {}
-    for src, o, dst, i, _ in pairs:
-        edges.setdefault((src, o), []).append((dst, i))
-    ports = {(dst, i) for _, _, dst, i, _ in pairs}
-    for c in sc.components:
-        for inp in sorted(i for comp, i in ports if comp == c.name):
-            base = inp.split("[")[0]  # an array element y[2]: its array's dependencies
-            for out in variables[c.name].values():
-                if out.causality == "output" and base in caps[c.name].depends(out.name, variables[c.name]):
-                    for o in element_names(out.name, out.shape):
-                        edges.setdefault((c.name, inp), []).append((c.name, o))
+    driven = {(dst, i) for _, _, dst, i, _ in pairs}
+    feedthrough = {  # per component, each output (an array: each element) -> the driven inputs it reads
+        c.name: {
+            o: [i for comp, i in driven if comp == c.name and i.split("[")[0] in depends]  # y[2]: y's
+            for out in variables[c.name].values()
+            if out.causality == "output"
+            for depends in [caps[c.name].depends(out.name, variables[c.name])]
+            for o in element_names(out.name, out.shape)
+        }
+        for c in sc.components
+    }
+    edges = port_graph(((s, o, d, i) for s, o, d, i, _ in pairs), feedthrough)
     cycles = [scc for scc in strongly_connected(edges) if len(scc) > 1 or scc[0] in edges.get(scc[0], [])]
     groups: list[set[str]] = []
     described: list[str] = []

@@ -10,6 +10,8 @@ text connection is a problem.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
+
 from lxml import etree
 
 from .context import Context
@@ -18,20 +20,27 @@ from .fmuinfo import CONTINUOUS, coupling_kind
 Port = tuple[str, str]
 
 
+def port_graph(
+    connections: Iterable[tuple[str, str, str, str]], feedthrough: Mapping[str, Mapping[str, Iterable[str]]]
+) -> dict[Port, list[Port]]:
+    """Adjacency lists of the port graph: each connection (start component, output, end component,
+    input) and, per component, each input -> output its `feedthrough` (output -> inputs) names."""
+    edges: dict[Port, list[Port]] = {}
+    for se, sc, ee, ec in connections:
+        edges.setdefault((se, sc), []).append((ee, ec))
+    for name, through in feedthrough.items():
+        for output, inputs in sorted(through.items()):
+            for inp in sorted(inputs):
+                edges.setdefault((name, inp), []).append((name, output))
+    return edges
+
+
 def graph(
     ctx: Context, connections: list[tuple[tuple[str, str, str, str], etree._Element]]
 ) -> dict[Port, list[Port]]:
-    """Adjacency lists of the port graph."""
-    edges: dict[Port, list[Port]] = {}
-    for (se, sc, ee, ec), _ in connections:
-        edges.setdefault((se, sc), []).append((ee, ec))
-    for c in ctx.comps.values():
-        if c.info is None:
-            continue
-        for output, inputs in sorted(c.info.feedthrough.items()):
-            for inp in sorted(inputs):
-                edges.setdefault((c.name, inp), []).append((c.name, output))
-    return edges
+    """The port graph of a scenario file's connections and its FMUs' model structure."""
+    feedthrough = {c.name: c.info.feedthrough for c in ctx.comps.values() if c.info is not None}
+    return port_graph((key for key, _ in connections), feedthrough)
 
 
 def strongly_connected(edges: dict[Port, list[Port]]) -> list[list[Port]]:
