@@ -425,7 +425,6 @@ int eval_derivatives(Instance *inst) {
     gather_states(inst, inst->x);
     if (m->derivatives(inst, inst->core->time, inst->x, inst->dx) != MODEL_OK) return 1;
     for (int i = 0; i < m->n_states; i++) inst->reals[m->derivative_slots[i]] = inst->dx[i];
-    keep_rhs(inst, inst->core->time, inst->x, inst->dx);
     return 0;
 }
 

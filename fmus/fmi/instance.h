@@ -183,8 +183,9 @@ int prepare_get(Instance *inst, const char *function, const unsigned vr[], size_
 void gather_states(Instance *inst, double *x);       /* state slots -> x */
 void scatter_states(Instance *inst, const double *x); /* x -> state slots */
 void mark_dirty(Instance *inst);
-/* Keep dx = f(t, x) at the current Real inputs; kept_rhs: 1 and dx if (t, x, inputs) match it
- * (t ignored for an autonomous model), else 0; forget_rhs: none kept. */
+/* Keep dx = f(t, x) at the current Real inputs (an outputs evaluation of a model whose outputs
+ * compute f); kept_rhs: 1 and dx if (t, x, inputs) match it (t ignored for an autonomous model),
+ * else 0; forget_rhs: none kept. */
 void keep_rhs(Instance *inst, double t, const double *x, const double *dx);
 int kept_rhs(Instance *inst, double t, const double *x, double *dx);
 void forget_rhs(Instance *inst);

@@ -32,7 +32,6 @@ from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
 from master.scenario.model import LOOP_METHODS, TRANSFORMATIONS, ModelExchange
 from master.schedule import (
-    EDGE_ASSUMED,
     KINDS,
     Clock,
     Link,
@@ -530,7 +529,7 @@ class CompiledPlan:
         L.memory = m = min(n, ANDERSON_MEMORY)
         L.work = _ptr(self._array(np.zeros(7 * n + 2 * n * n + 2 * m * n + m * m), np.float64), C.c_double)
         L.pivot = self._ints(np.zeros(n))
-        L.probed = int(not any(EDGE_ASSUMED in row for row in lp.structure))
+        L.probed = int(not lp.assumed)  # nothing to test: every entry declared
         return L
 
     def _ints(self, values):
