@@ -1418,8 +1418,9 @@ static int32_t solve_loop(mk_kernel *k, int32_t l, int64_t n) {
                     return loop_sequence(k, L, n);
                 }
                 have_jacobian = true;
-                /* the probe's evaluations moved the members' inputs: evaluate at x again */
-                if ((code = loop_evaluate(k, L, n, x, fx))) return code;
+                /* finite differences moved the members' inputs: where x is the answer, back to it
+                 * (else the next iterate sets them) */
+                if (converged && !L->derivatives && (code = loop_evaluate(k, L, n, x, fx))) return code;
             }
         }
         if (converged) break;
