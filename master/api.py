@@ -19,6 +19,7 @@ from master.backends.driver import execute, interruption, stop_signals
 from master.description import (
     CO_SIMULATION,
     MODEL_EXCHANGE,
+    SCHEDULED_EXECUTION,
     defects,
     interfaces,
     runs_as_model_exchange,
@@ -170,7 +171,9 @@ def plan(sc: Scenario) -> Plan:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
         kind = MODEL_EXCHANGE if runs_as_model_exchange(md, c.model_exchange is not None) else CO_SIMULATION
-        caps[c.name] = interfaces(md).get(kind)  # the interface it is instantiated for (none: `check` says)
+        kind = SCHEDULED_EXECUTION if c.scheduled else kind
+        # the interface it is instantiated for (none: `check` says)
+        caps[c.name] = interfaces(md, Path(c.fmu_path)).get(kind)
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
         raise ScenarioError(problems)

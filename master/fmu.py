@@ -30,6 +30,7 @@ from master.description import (
     lookup,
     parse,
     runs_as_model_exchange,
+    runs_as_scheduled,
     typed,
     unsupported,
     variables_of,
@@ -198,14 +199,21 @@ class Fmu:
     """
 
     def __init__(
-        self, path: Path, instance_name: str, workdir: Path | None = None, model_exchange: bool = False
+        self,
+        path: Path,
+        instance_name: str,
+        workdir: Path | None = None,
+        model_exchange: bool = False,
+        scheduled: bool = False,
     ):
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
         self.fmi = int(self.md.fmiVersion[0])  # 1, 2 or 3
         # instantiated for Model Exchange: the kernel integrates its states (kernel.h: mk_component.me)
-        self.model_exchange = runs_as_model_exchange(self.md, model_exchange)
+        # instantiated for Scheduled Execution: the kernel activates its partitions (master.clocks)
+        self.scheduled = runs_as_scheduled(self.md, scheduled)
+        self.model_exchange = not self.scheduled and runs_as_model_exchange(self.md, model_exchange)
         if self.model_exchange and (self.md.modelExchange is None or self.fmi == 1):
             raise FmuError(f"{instance_name}: {self.path.name} has no Model Exchange 2.0 or 3.0 interface")
         self.fmi3 = self.fmi == 3
@@ -229,6 +237,7 @@ class Fmu:
     # -- loading ------------------------------------------------------------------------------
     def _load(self) -> None:
         kind = self.md.modelExchange if self.model_exchange else self.md.coSimulation
+        kind = self.md.scheduledExecution if self.scheduled else kind
         kw = dict(
             guid=self.md.instantiationToken if self.fmi3 else self.md.guid,
             modelIdentifier=kind.modelIdentifier,
@@ -237,9 +246,10 @@ class Fmu:
         )
         try:
             if self.fmi3:
-                from fmpy.fmi3 import FMU3Model, FMU3Slave
+                from fmpy.fmi3 import FMU3Model, FMU3ScheduledExecution, FMU3Slave
 
-                self.slave = (FMU3Model if self.model_exchange else FMU3Slave)(**kw)
+                interface = FMU3ScheduledExecution if self.scheduled else FMU3Slave
+                self.slave = (FMU3Model if self.model_exchange else interface)(**kw)
                 self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
@@ -354,7 +364,7 @@ class Fmu:
             self.raw_do_step = None if self.model_exchange else fn("fmi2DoStep")  # ME: the kernel integrates
             return
         get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")
-        if self.model_exchange:
+        if self.model_exchange or self.scheduled:  # no doStep: the kernel integrates or activates
             self.raw_get_real = lambda handle, vrs, count, ptr: get3(handle, vrs, count, ptr, count)
             self.raw_set_real = lambda handle, vrs, count, ptr: set3(handle, vrs, count, ptr, count)
             self.raw_do_step = None

@@ -82,6 +82,7 @@ void mk_layout(int64_t *sizes) {
     sizes[9] = (int64_t)sizeof(mk_call);
     sizes[10] = (int64_t)sizeof(mk_transform);
     sizes[11] = (int64_t)sizeof(mk_loop);
+    sizes[12] = (int64_t)sizeof(mk_scheduled);
 }
 
 void mk_constants(int64_t *values) {
@@ -1073,6 +1074,8 @@ static void me_history(mk_component *c, bool save) {
     else memcpy(c->me_memory, c->me_memory_saved, size), c->me_next_event = c->me_next_event_saved;
 }
 
+#include "scheduled.c" /* Scheduled Execution components: se_step, mk_scheduled_start */
+
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
@@ -1081,6 +1084,11 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     int64_t j = n * kc;
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
+        if (c->scheduled) { /* no doStep: its clocks' partitions activated at point j + 1 */
+            int32_t code = se_step(k, ci, u, m, j);
+            if (code != MK_DONE) return code;
+            continue;
+        }
         double t = point_time(c, j);
         int terminate = 0, st;
         int64_t t0 = now_ns();

@@ -26,7 +26,7 @@ from master.backends.component import (
     string_output_names,
 )
 from master.coupling import weights
-from master.description import FMI_FUNCTIONS, lookup
+from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, lookup
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
@@ -340,7 +340,7 @@ class CompiledPlan:
         for name, kind in native.TYPED.items() if fmu.fmi3 else ():
             c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
             c.set_typed[kind] = _exported(fmu, f"fmi3Set{name}")
-        for slot in ME_CALLS if fmu.model_exchange else ("do_step",):
+        for slot in ME_CALLS if fmu.model_exchange else () if fmu.scheduled else ("do_step",):
             _require(fmu, slot, pc.name)
         for slot in ("set_real", "get_real"):
             _require(fmu, slot, pc.name)
@@ -387,7 +387,8 @@ class CompiledPlan:
         # an output read at communication points or rows that depends on inputs: the step-end inputs
         # are set after each step (a coupled String or Binary, or a recorded output of any type, too)
         fed = any(variable(fmu, o).name in fmu.feedthrough for o in outputs_read(plan, out, pc.name))
-        c.feedthrough = int(bool(in_names) and fed)
+        # a Scheduled Execution component takes the inputs at its activations: the step-end block
+        c.feedthrough = int(bool(in_names) and (fed or pc.scheduled is not None))
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
@@ -446,6 +447,35 @@ class CompiledPlan:
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
         if fmu.model_exchange:
             self._model_exchange(c, pc, fmu, in_names)
+        if pc.scheduled is not None:
+            self._scheduled(c, pc, fmu)
+
+    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
+        """A Scheduled Execution component's clock tables (kernel.h: mk_scheduled, master.clocks)."""
+        se = pc.scheduled
+        t = native.Scheduled()
+        ins = se.inputs
+        t.n_clocks = len(ins)
+        t.vrs = self._vrs([ck.vr for ck in ins])
+        t.tick = _ptr(self._array([ck.tick for ck in ins], np.int32), C.c_int32)
+        t.every = _ptr(self._array([ck.every for ck in ins], np.int64), C.c_int64)
+        t.phase = _ptr(self._array([ck.phase for ck in ins], np.int64), C.c_int64)
+        first = np.cumsum([0] + [len(ck.points) for ck in ins])
+        t.first = _ptr(self._array(first, np.int64), C.c_int64)
+        t.points = _ptr(self._array([p for ck in ins for p in ck.points], np.int64), C.c_int64)
+        for name in ("due", "done"):
+            setattr(t, name, _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64))
+        t.activations = _ptr(self._array(np.zeros(len(ins)), np.int64), C.c_int64)
+        t.n_out_clocks = len(se.outputs)
+        t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
+        t.out_ticks = _ptr(self._array(np.zeros(len(se.outputs)), np.int64), C.c_int64)
+        for slot, name in SCHEDULED_FUNCTIONS.items():
+            f = _exported(fmu, name)
+            if f is None:
+                raise FmuError(f"{pc.name}: {fmu.path.name} does not export {name}")
+            setattr(t, slot, f)
+        self._keep.append(t)
+        c.scheduled = C.pointer(t)
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
@@ -692,6 +722,9 @@ class CompiledPlan:
         except FmuError as e:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
+        if fmu.scheduled:  # its partitions due at the start time (kernel.h: mk_scheduled_start)
+            if self.lib.mk_scheduled_start(self.ref, self.names.index(name)) != native.DONE:
+                raise self.error(initial=True)
         if fmu.model_exchange:  # the time event its initial event iteration asked for
             c = self.components[self.names.index(name)]
             c.me_next_event = fmu.next_event_time
@@ -832,6 +865,8 @@ class CompiledPlan:
                 t,
                 bad,
             )
+        if e.code == native.CLOCK or native.CALLS[e.call] in SCHEDULED_FUNCTIONS:
+            return self._clock_error(e, name, fmu, pc)
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
         if e.code == native.EVENT:
@@ -860,6 +895,22 @@ class CompiledPlan:
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+    def _clock_error(self, e, name: str, fmu: Fmu, pc: PlanComponent) -> SimulationError:
+        """A Scheduled Execution component's failure in its activations at point e.point (kernel.h:
+        mk_scheduled), or a clock counted down off its grid."""
+        t = pc.clock.time(e.point)
+        if e.code == native.CLOCK:
+            clock = pc.scheduled.inputs[e.variable].name
+            return SimulationError(
+                f"{name}: clock {clock} counted down by {e.value:g} s at t={t}, not a whole number of "
+                f"its communication steps ({float(pc.step):g} s)",
+                name,
+                t,
+            )
+        function = SCHEDULED_FUNCTIONS[native.CALLS[e.call]]
+        cause = FmuError(fmu.describe(str(FMICallException(function=function, status=e.status))))
+        return SimulationError(f"{cause} at t={t}", name, t)
 
 
 def _start_number(start: str | None) -> float:

@@ -14,7 +14,7 @@ from fractions import Fraction
 
 from lxml import etree
 
-from master.description import FLOATS, Description, typed
+from master.description import FLOATS, SCHEDULED_EXECUTION, Description, typed
 from master.schedule import Clock
 from master.solvers import NUMBERS
 
@@ -47,6 +47,7 @@ class Settings:
     iteration: Iteration | None = None
     origins: dict[str, str] = field(default_factory=dict)  # setting -> where its value came from
     model_exchange: dict[str, ModelExchange] = field(default_factory=dict)  # components run as ME
+    scheduled: set[str] = field(default_factory=set)  # components run as Scheduled Execution
 
 
 def model_exchange_problems(me: ModelExchange, step: Fraction, info: Description | None) -> list[str]:
@@ -317,6 +318,8 @@ def model_exchange(
     """Whether component `name` runs as Model Exchange (modelExchange="true" on its mm:Component
     `ce`, else implementation="ModelExchange" on its ssd:Component, else an FMU without a
     Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
+    if scheduled_execution(ctx, s, name, info):
+        return False
     asked, where, said = _bool(attrs.get("modelExchange")), ce, 'modelExchange="false"'
     comp = ctx.comps[name].elem
     if asked is None and comp.get("implementation") in IMPLEMENTATIONS:
@@ -337,6 +340,22 @@ def model_exchange(
     if "solver" not in attrs and "internalStep" not in attrs:
         s.origins[f"{name} integration"] = DEFAULT_MODEL_EXCHANGE
     return True
+
+
+def scheduled_execution(ctx: Context, s: Settings, name: str, info: Description | None) -> bool:
+    """Whether component `name` runs as Scheduled Execution (implementation="ScheduledExecution" on
+    its ssd:Component, or an FMU whose only interface that is): then in s.scheduled."""
+    comp = ctx.comps[name].elem
+    asked = comp.get("implementation") == SCHEDULED_EXECUTION
+    has = info is not None and info.scheduled_execution is not None
+    if asked and info is not None and not has:
+        why = f"{info.path.name} has no Scheduled Execution interface"
+        ctx.at(comp, f'implementation="{SCHEDULED_EXECUTION}": {why}')
+    only = has and info.co_simulation is None and info.model_exchange is None
+    if asked or only:
+        s.scheduled.add(name)
+        return True
+    return False
 
 
 def _substeps(ctx: Context, ce: etree._Element, s: Settings, name: str, var, k: int) -> None:
@@ -473,7 +492,8 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        problem = stimulus_problem(var.fmi_type, version, kind, var.shape)
+        clock = var.fmi_type == "Clock"  # a triggered clock's ticks: master.scenario.check's rules
+        problem = None if clock else stimulus_problem(var.fmi_type, version, kind, var.shape)
         if problem:
             ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.fmi_type, var.shape)}: {problem}")
             ok = False
@@ -495,7 +515,7 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             if times and t <= times[-1]:
                 ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
                 ok = False
-            problem = point_problem(f"{key[0]}.{key[1]}", var, version, t, v)
+            problem = None if clock else point_problem(f"{key[0]}.{key[1]}", var, version, t, v)
             if problem:
                 ctx.at(pe, problem)
                 ok = False
