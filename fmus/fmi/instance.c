@@ -185,6 +185,7 @@ void instance_reset(Instance *inst) {
             case T_FLOAT32: inst->reals[s] = (float)start; break;
             case T_INTEGER:
             case T_SOLVER: inst->integers[s] = (int)start; break;
+            case T_CLOCK: inst->integers[s] = 0; break; /* no tick; an interval not yet known */
             case T_BOOLEAN: inst->booleans[s] = start != 0.0; break;
             case T_STRING: model_set_string(inst, (int)s, v->start_string); break;
             case T_INT8:
@@ -229,7 +230,7 @@ const char *type_name(const Instance *inst, int type) {
     static const char *const names2[] = {"Real", "Integer", "Boolean", "String", "Enumeration"};
     static const char *const names3[T_COUNT] = {"Float64", "Int32",  "Boolean", "String", "Enumeration",
                                                 "Float32", "Int8",   "UInt8",   "Int16",  "UInt16",
-                                                "UInt32",  "Int64",  "UInt64",  "Binary"};
+                                                "UInt32",  "Int64",  "UInt64",  "Binary",  "Clock"};
     if (type < 0 || type >= T_COUNT) return "unknown";
     if (inst->fmi_version <= 2 && type <= T_SOLVER) return names2[type];
     return names3[type];

@@ -89,6 +89,8 @@ struct Instance {
     EmitFn emit;
     void (*logger)(void);    /* the importer's logger, cast back to its own type by emit */
     void *env;               /* the importer's environment pointer, passed to the logger */
+    int scheduled;           /* FMI 3.0 Scheduled Execution (clocks.c); its Clock Activation Mode is Step Mode */
+    void (*clock_update)(void *env); /* its importer's fmi3ClockUpdateCallback (NULL: none) */
     unsigned log_mask;       /* bit per category, see log.c */
     char model_error[512];   /* the model's last logError message, repeated in the layer's failure report */
     char error_suffix[512];  /* returned by model_error_suffix */
@@ -245,6 +247,14 @@ int event_update(Instance *inst, const char *function, int *needed, int *states_
 int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate);
 /* The model's indicators at the current time and states into z; 0 on success. */
 int event_indicators_now(Instance *inst, double *z);
+
+/* clocks.c: FMI 3.0 Scheduled Execution (ModelDef.clocks). The partition of input clock vr at time t;
+ * output clocks read (ticked: 1, each reset by the read); the intervals of clocks (qualifiers: FMI 3.0's
+ * fmi3IntervalQualifier, a countdown's reset to unchanged by the read). */
+LayerStatus clock_activate(Instance *inst, const char *function, unsigned vr, double t);
+LayerStatus clock_get(Instance *inst, const char *function, const unsigned vr[], size_t nvr, int ticked[]);
+LayerStatus clock_intervals(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                            double intervals[], int qualifiers[]);
 
 /* derivative.c: d(unknowns)/d(knowns) * seed for scalar Real variables. */
 LayerStatus directional_derivative(Instance *inst, const char *function, const unsigned unknown[],
