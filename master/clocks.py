@@ -117,9 +117,8 @@ def on_grid(t: Fraction, step: Fraction) -> int | None:
     return int(q) if q.denominator == 1 else None
 
 
-def clock_problems(clock: ClockVariable, step: Fraction, triggered: bool) -> list[str]:
-    """Why the master cannot activate input clock `clock` on a grid of step `step` (s); triggered:
-    a stimulus gives its ticks."""
+def clock_problems(clock: ClockVariable, step: Fraction) -> list[str]:
+    """Why the master cannot activate input clock `clock` on a grid of step `step` (s)."""
     name = f"clock {clock.name}"
     v = clock.interval_variability
     if v not in SUPPORTED:
@@ -140,9 +139,31 @@ def clock_problems(clock: ClockVariable, step: Fraction, triggered: bool) -> lis
                 f"{name}: shift {float(clock.shift):g} s is not a multiple of the component's "
                 f"communication step {float(step):g} s"
             ]
-    if triggered and v != "triggered":
-        return [f'{name}: a stimulus gives ticks to triggered clocks only, not "{v}" ones']
     return []
+
+
+def stimulus_problems(
+    clock: ClockVariable,
+    scheduled: bool,
+    kind: str,
+    times: tuple[float, ...],
+    start: Fraction,
+    step: Fraction,
+) -> list[str]:
+    """Why a stimulus of kind `kind` at `times` cannot give input clock `clock` its ticks (a step
+    stimulus, a tick at each time with a nonzero value) on a grid of step `step` from `start`;
+    scheduled: its component runs as Scheduled Execution."""
+    if not scheduled:
+        return [f"clock {clock.name}: only a Scheduled Execution component's clocks tick"]
+    if kind != "step":
+        return [f"clock {clock.name}: its ticks are a step stimulus (a tick per nonzero value), not a {kind}"]
+    if clock.interval_variability != "triggered":
+        return [
+            f"clock {clock.name}: a stimulus gives ticks to triggered clocks only, "
+            f'not "{clock.interval_variability}" ones'
+        ]
+    why = tick_points(times, tuple(1.0 for _ in times), start, step)[1]
+    return [f"clock {clock.name}: {why}"] if why else []
 
 
 def tick_points(

@@ -80,6 +80,8 @@ PLATFORM3 = "x86_64-linux"  # FMI 3.0 platform tuple
 FMI_VERSIONS = (1, 2, 3)
 # The layer's interface file of each FMI version; an FMU is built with its own one only.
 INTERFACE_FILES = {1: "fmi1.c", 2: "fmi2.c", 3: "fmi3.c"}
+# layer files of FMI 3.0 alone (Scheduled Execution): no FMI 1.0 or 2.0 build needs them
+FMI3_LAYER_FILES = ("clocks.c",)
 FMI_HEADERS = {
     1: ("fmi1Functions.h",),
     2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -159,6 +161,7 @@ def _c_sources(name: str, fmi: int | None = 2) -> list[Path]:
     """The C files compiled into the FMU of FMI version `fmi`: the layer with that version's
     interface file (None: with none, for describe.c), the solvers, the model."""
     skip = {"describe.c"} | {f for v, f in INTERFACE_FILES.items() if v != fmi}
+    skip |= set(FMI3_LAYER_FILES) if fmi in (1, 2) else set()
     layer = [p for p in sorted(FMI_DIR.glob("*.c")) if p.name not in skip]
     return layer + sorted(SOLVERS_DIR.glob("*.c")) + sorted(_model_dir(name).glob("*.c"))
 

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from master.clocks import clock_problems, tick_points
+from master.clocks import clock_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -86,25 +86,21 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
             at(f"component {c.name}", f"{info.path.name} has no Scheduled Execution interface")
             continue
         step = Fraction(sc.macro_step) / c.step_ratio
-        ticked = {s.variable for s in sc.stimuli if s.component == c.name}
         for clock in se.clocks:
             if clock.causality == "input":
-                for problem in clock_problems(clock, step, clock.name in ticked):
+                for problem in clock_problems(clock, step):
                     at(f"component {c.name}", problem)
 
 
-def _clock_stimulus(sc: Scenario, s, where: str, at: At) -> None:
+def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:
     """A step stimulus on a triggered input clock of a Scheduled Execution component: its ticks."""
-    comp, name = sc.component(s.component), f"{s.component}.{s.variable}"
-    if not comp.scheduled:
-        at(where, f"{name} is a Clock: only Scheduled Execution components' clocks tick")
-    elif s.kind != "step":
-        at(where, f"{name} is a Clock: its ticks are a step stimulus (a tick per nonzero value)")
-    elif _ratio_ok(comp.step_ratio):
+    comp = sc.component(s.component)
+    if _ratio_ok(comp.step_ratio):
         step = Fraction(sc.macro_step) / comp.step_ratio
-        _, why = tick_points(s.times, s.values, Fraction(sc.start_time), step)
-        if why:
-            at(where, f"{name}: {why}")
+        for problem in stimulus_problems(
+            clock, comp.scheduled, s.kind, s.times, Fraction(sc.start_time), step
+        ):
+            at(where, problem)
 
 
 def times(sc: Scenario) -> list[Problem]:
@@ -282,7 +278,12 @@ def _stimuli(sc: Scenario, infos: Infos, driven: dict[tuple[str, str], str], at:
             at(where, f"{name} is driven by {driven[key]}: stimuli are for undriven inputs")
         driven[key] = where
         if var.fmi_type == "Clock":
-            _clock_stimulus(sc, s, where, at)
+            clocks = infos[s.component].scheduled_execution
+            clock = next(c for c in clocks.clocks if c.name == s.variable) if clocks else None
+            if clock is None:
+                at(where, f"{name} is a Clock: only a Scheduled Execution component's clocks tick")
+            else:
+                _clock_stimulus(sc, s, clock, where, at)
             continue
         version = infos[s.component].fmi_version
         problem = stimulus_problem(var.fmi_type, version, s.kind, var.shape)

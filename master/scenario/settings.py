@@ -14,6 +14,7 @@ from fractions import Fraction
 
 from lxml import etree
 
+from master.clocks import clock_problems, stimulus_problems
 from master.description import FLOATS, SCHEDULED_EXECUTION, Description, typed
 from master.schedule import Clock
 from master.solvers import NUMBERS
@@ -159,7 +160,7 @@ def read(
     # written (also of connections with problems of their own, resolved through system connectors)
     _connections(ctx, elem, s, set(ctx.driven) | ctx.ends)
     _record(ctx, elem, s)
-    _stimuli(ctx, elem, s)
+    _stimuli(ctx, elem, s, times[0] if times is not None else Fraction(0))
     _coupling_iterations(ctx, elem, s)
     _saved_states(ctx, elem, s)
     return s
@@ -352,10 +353,15 @@ def scheduled_execution(ctx: Context, s: Settings, name: str, info: Description 
         why = f"{info.path.name} has no Scheduled Execution interface"
         ctx.at(comp, f'implementation="{SCHEDULED_EXECUTION}": {why}')
     only = has and info.co_simulation is None and info.model_exchange is None
-    if asked or only:
-        s.scheduled.add(name)
-        return True
-    return False
+    if not (asked or only):
+        return False
+    s.scheduled.add(name)
+    step = s.macro_step / s.step_ratio[name]
+    for clock in info.scheduled_execution.clocks if has else ():
+        if clock.causality == "input":
+            for problem in clock_problems(clock, step):
+                ctx.at(comp, problem)
+    return True
 
 
 def _substeps(ctx: Context, ce: etree._Element, s: Settings, name: str, var, k: int) -> None:
@@ -469,7 +475,25 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     s.record = tuple(chosen)
 
 
-def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
+def _clock_ticks(
+    ctx: Context, se: etree._Element, s: Settings, key, kind: str, times, start: Fraction
+) -> bool:
+    """A stimulus on a Clock: the ticks of a triggered input clock (master.clocks); False if not."""
+    info = ctx.comps[key[0]].info
+    found = (
+        [c for c in info.scheduled_execution.clocks if c.name == key[1]] if info.scheduled_execution else []
+    )
+    if not found:
+        ctx.at(se, f"{key[0]}.{key[1]} is a Clock: only a Scheduled Execution component's clocks tick")
+        return False
+    step = s.macro_step / s.step_ratio[key[0]]
+    problems = stimulus_problems(found[0], key[0] in s.scheduled, kind, times, start, step)
+    for problem in problems:
+        ctx.at(se, problem)
+    return not problems
+
+
+def _stimuli(ctx: Context, elem: etree._Element, s: Settings, start: Fraction = Fraction(0)) -> None:
     holder = elem.find(tag(NS_MM, "Stimuli"))
     found: dict[tuple[str, str], etree._Element] = {}
     stimuli = []
@@ -492,7 +516,7 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        clock = var.fmi_type == "Clock"  # a triggered clock's ticks: master.scenario.check's rules
+        clock = var.fmi_type == "Clock"  # a triggered clock's ticks (master.clocks), checked below
         problem = None if clock else stimulus_problem(var.fmi_type, version, kind, var.shape)
         if problem:
             ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.fmi_type, var.shape)}: {problem}")
@@ -521,6 +545,8 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
                 ok = False
             times.append(t)
             values.append(v)
+        if clock and ok and times:
+            ok = _clock_ticks(ctx, se, s, key, kind, tuple(times), start)
         if ok and times:
             stimuli.append(Stimulus(key[0], key[1], kind, tuple(times), tuple(values)))
     s.stimuli = tuple(stimuli)
