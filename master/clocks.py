@@ -29,6 +29,7 @@ from fractions import Fraction
 from pathlib import Path
 
 PERIODIC = ("constant", "fixed", "tunable")
+MAX_CLOCKS = 64  # input clocks of one component (kernel.h: MK_MAX_CLOCKS)
 SUPPORTED = (*PERIODIC, "countdown", "triggered")
 # what the kernel does with an input clock (kernel.h: mk_scheduled.kinds)
 TICK_PERIODIC, TICK_COUNTDOWN, TICK_TRIGGERED = 0, 1, 2
@@ -102,7 +103,9 @@ class Scheduled:
     def describe(self, step: Fraction) -> str:
         parts = []
         for c in self.inputs:
-            if c.tick == TICK_PERIODIC:
+            if c.tick == TICK_PERIODIC and not c.every:
+                parts.append(f"{c.name} every interval the FMU gives at the start, from {c.phase * step} s")
+            elif c.tick == TICK_PERIODIC:
                 parts.append(f"{c.name} every {c.every * step} s from {c.phase * step} s")
             elif c.tick == TICK_COUNTDOWN:
                 parts.append(f"{c.name} when the FMU counts it down")
@@ -127,8 +130,10 @@ def clock_problems(clock: ClockVariable, step: Fraction) -> list[str]:
             f"{', '.join(SUPPORTED)} input clocks)"
         ]
     if v in PERIODIC:
-        if clock.interval is None:
-            return [f'{name}: intervalVariability "{v}" without an interval in the description']
+        if clock.interval is None and v == "constant":
+            return [f'{name}: intervalVariability "constant" without an interval in the description']
+        if clock.interval is None:  # fixed, tunable: fmi3GetIntervalDecimal at the start (runtime)
+            return []
         if clock.interval <= 0 or on_grid(clock.interval, step) is None:
             return [
                 f"{name}: interval {float(clock.interval):g} s is not a multiple of the component's "
@@ -140,6 +145,20 @@ def clock_problems(clock: ClockVariable, step: Fraction) -> list[str]:
                 f"communication step {float(step):g} s"
             ]
     return []
+
+
+def scheduled_problems(clocks: tuple[ClockVariable, ...], step: Fraction) -> list[str]:
+    """Why the master cannot activate the input clocks `clocks` of a Scheduled Execution component
+    on its grid of step `step` (s)."""
+    inputs = [c for c in clocks if c.causality == "input"]
+    found = (
+        [f"{len(inputs)} input clocks: the master activates at most {MAX_CLOCKS}"]
+        if len(inputs) > MAX_CLOCKS
+        else []
+    )
+    for clock in inputs:
+        found += clock_problems(clock, step)
+    return found
 
 
 def stimulus_problems(
@@ -164,6 +183,19 @@ def stimulus_problems(
         ]
     why = tick_points(times, tuple(1.0 for _ in times), start, step)[1]
     return [f"clock {clock.name}: {why}"] if why else []
+
+
+def every_from_fmu(clock: InputClock, interval: float, step: Fraction) -> tuple[int | None, str]:
+    """A periodic clock's interval as the FMU gives it (fmi3GetIntervalDecimal, s) in points of the
+    grid of step `step`: (points, "") or (None, why not)."""
+    q = Fraction(interval) / step
+    whole = round(q)
+    if interval > 0 and abs(q - whole) <= Fraction(1, 10**9) * max(1, whole):
+        return whole, ""
+    return None, (
+        f"clock {clock.name}: interval {interval:g} s (fmi3GetIntervalDecimal) is not a multiple of the "
+        f"component's communication step {float(step):g} s"
+    )
 
 
 def tick_points(
@@ -198,9 +230,9 @@ def schedule(
     inputs = []
     for c in sorted((c for c in clocks if c.causality == "input"), key=lambda c: (c.priority, c.vr)):
         v = c.interval_variability
-        if v in PERIODIC:
-            every, phase = on_grid(c.interval, step), on_grid(c.shift, step)
-            inputs.append(InputClock(c.name, c.vr, TICK_PERIODIC, every, phase))
+        if v in PERIODIC:  # every 0: the FMU's interval, read at the start (`every_from_fmu`)
+            every = on_grid(c.interval, step) if c.interval is not None else 0
+            inputs.append(InputClock(c.name, c.vr, TICK_PERIODIC, every, on_grid(c.shift, step)))
         elif v == "countdown":
             inputs.append(InputClock(c.name, c.vr, TICK_COUNTDOWN))
         else:

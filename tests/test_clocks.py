@@ -21,6 +21,7 @@ import pytest
 from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
+from master.backends.component import SimulationError
 from master.fmubuild import build_fmu
 from master.scenario.model import Scheme
 
@@ -162,22 +163,43 @@ def test_ticks_only_for_triggered_clocks_and_on_the_grid(tmp_path):
     assert "clock inClock2: tick time 0.5 s is not a point of the component's grid (step 1 s)" in problem
 
 
-def test_an_unsupported_interval_variability_is_one_clear_line(tmp_path):
-    fmu = tmp_path / "changing.fmu"
-    original = build_fmu("clocks", fmi=3)
-    with zipfile.ZipFile(original) as src, zipfile.ZipFile(fmu, "w") as dst:
+def rewritten(tmp_path: Path, name: str, old: str, new: str) -> str:
+    """The project's clocks FMU with `old` replaced by `new` in its model description, in tmp_path."""
+    fmu = tmp_path / name
+    with zipfile.ZipFile(build_fmu("clocks", fmi=3)) as src, zipfile.ZipFile(fmu, "w") as dst:
         for item in src.infolist():
             data = src.read(item.filename)
             if item.filename == "modelDescription.xml":
-                text = data.decode()
-                text = text.replace(
-                    'intervalVariability="constant" intervalDecimal="1"', 'intervalVariability="changing"'
-                )
-                data = text.encode()
+                assert old in data.decode()
+                data = data.decode().replace(old, new).encode()
             dst.writestr(item, data)
-    path = alone(tmp_path / "changing.ssd", source="changing.fmu")
-    (problem,) = _problems(path)
+    return name
+
+
+INCLOCK1 = 'intervalVariability="constant" intervalDecimal="1"'
+
+
+def test_an_unsupported_interval_variability_is_one_clear_line(tmp_path):
+    source = rewritten(tmp_path, "changing.fmu", INCLOCK1, 'intervalVariability="changing"')
+    (problem,) = _problems(alone(tmp_path / "changing.ssd", source=source))
     assert 'clock inClock1: intervalVariability "changing" is not supported' in problem
+
+
+def test_a_fixed_interval_the_description_leaves_out_is_asked_of_the_fmu(tmp_path):
+    source = rewritten(tmp_path, "fixed.fmu", INCLOCK1, 'intervalVariability="fixed"')
+    path = alone(tmp_path / "fixed.ssd", source=source, settings=ticks(0, 1, 8, 9))
+    assert api.validate(path) == []
+    data = api.run(path, backend="serial").data  # fmi3GetIntervalDecimal: 1 s
+    assert list(data["clocks.totalInClockTicks"]) == reference()["totalInClockTicks"]
+    # off the grid: known only once the FMU says it, so the run stops at the start with one line
+    path = alone(tmp_path / "fixed_off.ssd", source=source, macro_step="0.3", stop="3")
+    assert api.validate(path) == []
+    with pytest.raises(SimulationError) as err:
+        api.run(path, backend="serial")
+    assert str(err.value).startswith(
+        "clocks: clock inClock1: interval 1 s (fmi3GetIntervalDecimal) is not a multiple of the "
+        "component's communication step 0.3 s"
+    )
 
 
 def test_the_cli_validates_and_runs_the_scene(tmp_path):

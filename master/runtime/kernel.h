@@ -185,6 +185,7 @@ typedef void (*mk_function)(void);
  * (due: -1 none). Output clocks are read with fmi3GetClock after each point's activations and their
  * ticks counted. */
 enum { MK_TICK_PERIODIC = 0, MK_TICK_COUNTDOWN = 1, MK_TICK_TRIGGERED = 2 };
+#define MK_MAX_CLOCKS 64 /* input clocks of one component */
 
 typedef struct {
     int32_t n_clocks;
@@ -195,7 +196,6 @@ typedef struct {
     const int64_t *first;  /* [n_clocks + 1]: a triggered clock's points: points[first[i] .. first[i + 1]) */
     const int64_t *points; /* ascending */
     int64_t *due;          /* [n_clocks] */
-    int64_t *done;         /* [n_clocks]: the point of its latest activation (-1: none) */
     int64_t *activations;  /* [n_clocks]: counted */
     int32_t n_out_clocks;
     const uint32_t *out_vrs; /* [n_out_clocks] */

@@ -219,7 +219,6 @@ class Scheduled(C.Structure):
         ("first", C.POINTER(_i64)),
         ("points", C.POINTER(_i64)),
         ("due", C.POINTER(_i64)),
-        ("done", C.POINTER(_i64)),
         ("activations", C.POINTER(_i64)),
         ("n_out_clocks", _i32),
         ("out_vrs", C.POINTER(_u32)),

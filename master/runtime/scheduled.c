@@ -46,18 +46,19 @@ static int32_t se_countdowns(mk_kernel *k, int32_t ci, int64_t j) {
 }
 
 /* The activations of component ci at point j: every input clock due there, the highest-priority
- * one first after every activation (a countdown clock set due at j by one of them too), each once;
- * then its output clocks read and their ticks counted. */
+ * one first after every activation (a countdown clock set due at j by one of them too), each once
+ * (at most MK_MAX_CLOCKS input clocks); then its output clocks read and their ticks counted. */
 static int32_t se_activate(mk_kernel *k, int32_t ci, int64_t j) {
     mk_component *c = &k->components[ci];
     mk_scheduled *s = c->scheduled;
     const double t = point_time(c, j);
+    uint64_t done = 0; /* bit i: clock i activated at j (repeated steps activate again from a restored state) */
     for (int32_t i = 0; i < s->n_clocks;) {
-        if (s->done[i] == j || !se_due(s, i, j)) {
+        if ((done >> i & 1) || !se_due(s, i, j)) {
             i++;
             continue;
         }
-        s->done[i] = j;
+        done |= (uint64_t)1 << i;
         int st = ((fmi3_activate_model_partition *)s->activate_model_partition)(c->instance, s->vrs[i], t);
         if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_ACTIVATE_MODEL_PARTITION, st, j);
         s->activations[i]++;

@@ -25,6 +25,7 @@ from master.backends.component import (
     samples_read,
     string_output_names,
 )
+from master.clocks import TICK_PERIODIC, every_from_fmu
 from master.coupling import weights
 from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, lookup
 from master.fmu import Fmu, FmuError
@@ -214,6 +215,9 @@ class CompiledPlan:
         self._keep: list[object] = []  # every array and structure the kernel points into
         self.bound: dict[str, np.ndarray] = {}
         self.held: dict[str, np.ndarray] = {}  # per local component: which history columns are held signals
+        self.every: dict[
+            str, np.ndarray
+        ] = {}  # Scheduled Execution: its input clocks' periods (mk_scheduled)
         self.resampled, order = resampling(plan, outs)
         comps = (native.Component * len(self.names))()
         for i, pc in enumerate(plan.components):
@@ -458,13 +462,13 @@ class CompiledPlan:
         t.n_clocks = len(ins)
         t.vrs = self._vrs([ck.vr for ck in ins])
         t.tick = _ptr(self._array([ck.tick for ck in ins], np.int32), C.c_int32)
-        t.every = _ptr(self._array([ck.every for ck in ins], np.int64), C.c_int64)
+        self.every[pc.name] = every = self._array([ck.every for ck in ins], np.int64)  # 0: from the FMU
+        t.every = _ptr(every, C.c_int64)
         t.phase = _ptr(self._array([ck.phase for ck in ins], np.int64), C.c_int64)
         first = np.cumsum([0] + [len(ck.points) for ck in ins])
         t.first = _ptr(self._array(first, np.int64), C.c_int64)
         t.points = _ptr(self._array([p for ck in ins for p in ck.points], np.int64), C.c_int64)
-        for name in ("due", "done"):
-            setattr(t, name, _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64))
+        t.due = _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64)
         t.activations = _ptr(self._array(np.zeros(len(ins)), np.int64), C.c_int64)
         t.n_out_clocks = len(se.outputs)
         t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
@@ -723,6 +727,7 @@ class CompiledPlan:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
         if fmu.scheduled:  # its partitions due at the start time (kernel.h: mk_scheduled_start)
+            self._intervals(name, fmu)
             if self.lib.mk_scheduled_start(self.ref, self.names.index(name)) != native.DONE:
                 raise self.error(initial=True)
         if fmu.model_exchange:  # the time event its initial event iteration asked for
@@ -734,6 +739,28 @@ class CompiledPlan:
                 except FMICallException as e:
                     t = float(self.plan.scenario.start_time)
                     raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
+
+    def _intervals(self, name: str, fmu: Fmu) -> None:
+        """The periods of a Scheduled Execution component's fixed and tunable clocks whose description
+        gives no interval: fmi3GetIntervalDecimal after initialisation, on the component's grid."""
+        from fmpy.fmi3 import fmi3Float64, fmi3IntervalQualifier, fmi3ValueReference
+
+        pc = self.plan.component(name)
+        t = float(self.plan.scenario.start_time)
+        for i, clock in enumerate(pc.scheduled.inputs):
+            if clock.tick != TICK_PERIODIC or clock.every:
+                continue
+            interval, qualifier = fmi3Float64(), fmi3IntervalQualifier()
+            try:
+                fmu.slave.fmi3GetIntervalDecimal(
+                    fmu.slave.component, (fmi3ValueReference * 1)(clock.vr), 1, interval, qualifier
+                )
+            except FMICallException as e:
+                raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
+            every, why = every_from_fmu(clock, interval.value, pc.step)
+            if every is None:
+                raise SimulationError(f"{name}: {why}", name, t)
+            self.every[name][i] = every
 
     def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
         """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from master.clocks import clock_problems, stimulus_problems
+from master.clocks import scheduled_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -86,10 +86,8 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
             at(f"component {c.name}", f"{info.path.name} has no Scheduled Execution interface")
             continue
         step = Fraction(sc.macro_step) / c.step_ratio
-        for clock in se.clocks:
-            if clock.causality == "input":
-                for problem in clock_problems(clock, step):
-                    at(f"component {c.name}", problem)
+        for problem in scheduled_problems(se.clocks, step):
+            at(f"component {c.name}", problem)
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:

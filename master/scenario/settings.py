@@ -14,7 +14,7 @@ from fractions import Fraction
 
 from lxml import etree
 
-from master.clocks import clock_problems, stimulus_problems
+from master.clocks import scheduled_problems, stimulus_problems
 from master.description import FLOATS, SCHEDULED_EXECUTION, Description, typed
 from master.schedule import Clock
 from master.solvers import NUMBERS
@@ -357,10 +357,8 @@ def scheduled_execution(ctx: Context, s: Settings, name: str, info: Description 
         return False
     s.scheduled.add(name)
     step = s.macro_step / s.step_ratio[name]
-    for clock in info.scheduled_execution.clocks if has else ():
-        if clock.causality == "input":
-            for problem in clock_problems(clock, step):
-                ctx.at(comp, problem)
+    for problem in scheduled_problems(info.scheduled_execution.clocks, step) if has else ():
+        ctx.at(comp, problem)
     return True
 
 
