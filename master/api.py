@@ -442,6 +442,10 @@ def fmu_info(path: Path) -> str:
             f"states, {md.numberOfEventIndicators} event indicators, "
             f"canGetAndSetFMUstate={me.canGetAndSetFMUstate}"
         )
+    se = interfaces(md, Path(path)).get(SCHEDULED_EXECUTION)
+    if se is not None:  # the master activates its partitions (master.clocks)
+        clocks = ", ".join(f"{c.name} ({c.causality}, {c.interval_variability})" for c in se.clocks)
+        lines.append(f"  Scheduled Execution: clocks {clocks or 'none'}")
     lines += [f"  read all the same, as peer masters do: {d}" for d in defects(path)]
     lines.append(f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit")
     for v in variables_of(md).values():
