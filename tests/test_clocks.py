@@ -67,13 +67,18 @@ def reference() -> dict[str, list[int]]:
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_clocks_scene_matches_the_reference_output_in_every_backend(backend):
-    data = api.run(SCENE, backend=backend).data
+    result = api.run(SCENE, backend=backend)
+    data = result.data
     ref = reference()
     assert list(data["time"]) == ref["time"]  # a row per activation point, 0 .. 9 s
     for name in ("inClock1Ticks", "inClock2Ticks", "inClock3Ticks", "totalInClockTicks"):
         assert list(data[f"clocks.{name}"]) == ref[name], name
     # inClock3 ticks once, at 4 s (counted down by 0 s by inClock1's partition there): output3 from then
     assert list(data["clocks.output3"]) == [0] * 4 + [1000] * 6
+    # the summary counts the activations; outClock ticked where the total became 5, 10 and 15
+    ticks = {"clocks.inClock1": 10, "clocks.inClock2": 4, "clocks.inClock3": 1, "clocks.outClock": 3}
+    assert result.summary.clock_ticks == ticks
+    assert "clock activations and ticks: clocks.inClock1 10, clocks.inClock2 4" in str(result.summary)
 
 
 def test_validate_accepts_the_scene_and_info_names_the_activations():

@@ -183,7 +183,25 @@ def layout(
     out["fmu_time"] = ((nc, 8), "float64")
     out["loops"] = ((max(len(plan.loops), 1), 8), "int64")  # per loop its counters (kernel.h mk_loop)
     out["loop_worst"] = ((max(len(plan.loops), 1), 8), "float64")  # and its largest accepted residual
+    out["clock_ticks"] = ((max(len(clock_names(plan)), 1),), "int64")  # mk_scheduled's counts
     return out
+
+
+def clock_names(plan: Plan) -> list[str]:
+    """ "component.clock" of every Scheduled Execution component's input clocks, then its output
+    clocks (the kernel counts their activations and ticks in this order, mk_scheduled)."""
+    return [
+        f"{pc.name}.{c.name}"
+        for pc in plan.components
+        if pc.scheduled
+        for c in pc.scheduled.inputs + pc.scheduled.outputs
+    ]
+
+
+def clock_ticks(plan: Plan, memory: Memory) -> dict[str, int]:
+    """Per clock of a Scheduled Execution component ("component.clock"): its activations (an
+    input clock) or the ticks read (an output clock)."""
+    return {name: int(memory["clock_ticks"][i]) for i, name in enumerate(clock_names(plan))}
 
 
 class CompiledPlan:
@@ -469,10 +487,11 @@ class CompiledPlan:
         t.first = _ptr(self._array(first, np.int64), C.c_int64)
         t.points = _ptr(self._array([p for ck in ins for p in ck.points], np.int64), C.c_int64)
         t.due = _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64)
-        t.activations = _ptr(self._array(np.zeros(len(ins)), np.int64), C.c_int64)
+        first = clock_names(self.plan).index(f"{pc.name}.{ins[0].name}") if ins else 0  # in shared memory
+        t.activations = _ptr(self.memory["clock_ticks"][first:], C.c_int64)
         t.n_out_clocks = len(se.outputs)
         t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
-        t.out_ticks = _ptr(self._array(np.zeros(len(se.outputs)), np.int64), C.c_int64)
+        t.out_ticks = _ptr(self.memory["clock_ticks"][first + len(ins) :], C.c_int64)
         for slot, name in SCHEDULED_FUNCTIONS.items():
             f = _exported(fmu, name)
             if f is None:
