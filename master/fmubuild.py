@@ -728,6 +728,12 @@ def _start_text3(v: dict[str, Any]) -> str:
     return " ".join([one] * v["size"])
 
 
+def _intermediate_input(v: dict[str, Any]) -> bool:
+    """An input the importer may set inside doStep through the intermediate-update callback (FMI 3.0
+    intermediateUpdate="true"): a continuous Float64 input, fmus/fmi/instance.c intermediate_input."""
+    return v["causality"] == "input" and v["type"] == "Real" and v["variability"] == "continuous"
+
+
 def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     """FMI 3.0 Model Exchange and Co-Simulation modelDescription.xml.  Value references are the
     table positions (unique across all types); `time`, the independent variable, takes the next one."""
@@ -744,6 +750,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         variableNamingConvention="flat",
     )
     scalars_only = not any(v["dimensions"] for v in variables)
+    intermediate = [vr for vr, v in enumerate(variables) if _intermediate_input(v)]
     etree.SubElement(  # as FMI 2.0's
         root,
         "ModelExchange",
@@ -763,6 +770,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             # fmi3GetDirectionalDerivative takes scalar Float64 variables only
             providesDirectionalDerivatives="true" if scalars_only else "false",
             canHandleVariableCommunicationStepSize="true",
+            providesIntermediateUpdate="true" if intermediate else "false",
             canReturnEarlyAfterIntermediateUpdate="false",
             hasEventMode="false",
         )
@@ -818,6 +826,8 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             e.set("start", _start_text3(v))
         if v["derivative_of"] != -1:
             e.set("derivative", str(v["derivative_of"]))
+        if vr in intermediate:
+            e.set("intermediateUpdate", "true")
         for extent in v["dimensions"]:
             etree.SubElement(e, "Dimension", start=str(extent))
         if has_start and kind in ("String", "Binary"):
