@@ -249,12 +249,13 @@ Initial effective_initial(const Variable *v) {
     return I_DEFAULT;
 }
 
-/* Rules for SetXXX per state (FMI 2.0 section 3.2.3 / 4.2.4; FMI 3.0 Co-Simulation without
- * Event Mode keeps them: Step Mode is StepComplete). */
 int intermediate_input(const Variable *v) {
     return v->causality == C_INPUT && v->type == T_REAL && v->variability == V_CONTINUOUS;
 }
 
+/* Rules for SetXXX per state (FMI 2.0 section 3.2.3 / 4.2.4; FMI 3.0 Co-Simulation without
+ * Event Mode keeps them: Step Mode is StepComplete; inside the intermediate-update callback only
+ * the intermediate-update inputs). */
 const char *not_settable_reason(const Instance *inst, const Variable *v) {
     Initial init = effective_initial(v);
     if (inst->in_intermediate_update)

@@ -61,7 +61,7 @@ const char *state_name(const Instance *inst, int state) {
 
 int check_state(Instance *inst, const char *function, unsigned allowed_mask) {
     if (inst->in_intermediate_update && strcmp(function, "fmi3SetFloat64") != 0) { /* inside the callback */
-        layer_log(inst, LOG_ERROR, "%s: not allowed in Intermediate Update Mode (only fmi3SetFloat64 is)", function);
+        layer_log(inst, LOG_ERROR, "%s: not allowed in Intermediate Update Mode (fmi3SetFloat64 is)", function);
         return 0;
     }
     if (allowed_mask & MASK(inst->core->state)) return 1;

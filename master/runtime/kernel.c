@@ -895,7 +895,6 @@ void mk_intermediate_update(void *environment, double time, bool set_requested, 
     iu->calls++;
 }
 
-
 /* What the solver's right-hand side of an ME component needs: the communication step's input blocks
  * and point, and the failing call. */
 typedef struct {
