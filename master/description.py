@@ -313,7 +313,8 @@ def interfaces(md: ModelDescription, path: Path | None = None) -> dict[str, Capa
         if kind is None:
             continue
         out[name] = Capability(
-            can_interpolate_inputs=bool(getattr(kind, "canInterpolateInputs", False)),
+            can_interpolate_inputs=bool(getattr(kind, "canInterpolateInputs", False))
+            or (name == CO_SIMULATION and bool(intermediate_inputs(md))),
             fmi_version=md.fmiVersion,
             can_get_set_state=bool(kind.canGetAndSetFMUstate),
             once_per_process=bool(kind.canBeInstantiatedOnlyOncePerProcess),
@@ -327,6 +328,21 @@ def interfaces(md: ModelDescription, path: Path | None = None) -> dict[str, Capa
             completed_integrator_step=name == MODEL_EXCHANGE and bool(kind.needsCompletedIntegratorStep),
         )
     return out
+
+
+def intermediate_inputs(md: ModelDescription) -> list[str]:
+    """The inputs of an FMI 3 Co-Simulation FMU that providesIntermediateUpdate which the master sets
+    inside doStep from its intermediate-update callback (the kernel's: their input polynomials at the
+    time the FMU asks, what FMI 2 FMUs get as input derivatives): the scalar Float64 inputs declared
+    intermediateUpdate="true". Where there is one, the FMU can interpolate its inputs."""
+    cs = md.coSimulation
+    if not md.fmiVersion.startswith("3.") or cs is None or not cs.providesIntermediateUpdate:
+        return []
+    return [
+        v.name
+        for v in md.modelVariables
+        if v.causality == "input" and v.type == "Float64" and v.intermediateUpdate and not v.dimensions
+    ]
 
 
 # -- the description of one FMU file ----------------------------------------------------------------
@@ -510,7 +526,20 @@ def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tu
     md, found = _checked(path)
     if md.fmiVersion == "1.0":
         _fmi1_terms(path, md)
+    elif md.fmiVersion.startswith("3."):
+        _intermediate_update(path, md)
     return md, found
+
+
+def _intermediate_update(path: Path, md: ModelDescription) -> None:
+    """The FMI 3 variables' intermediateUpdate attribute, which fmpy does not read."""
+    from lxml import etree
+
+    with zipfile.ZipFile(path) as zf:
+        root = etree.fromstring(zf.read("modelDescription.xml"))
+    marked = {e.get("name") for e in root.iterfind("ModelVariables/*[@intermediateUpdate='true']")}
+    for v in md.modelVariables:
+        v.intermediateUpdate = v.name in marked
 
 
 # FMI 1.0 Co-Simulation capabilities that fmpy does not read -> how to read each

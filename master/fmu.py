@@ -27,6 +27,7 @@ from master.description import (
     feedthrough_outputs,
     fmi_function,
     hex_bytes,
+    intermediate_inputs,
     lookup,
     parse,
     runs_as_model_exchange,
@@ -204,6 +205,7 @@ class Fmu:
         instance_name: str,
         workdir: Path | None = None,
         model_exchange: bool = False,
+        intermediate_update: bool = False,
         scheduled: bool = False,
     ):
         self.path = Path(path)
@@ -227,6 +229,11 @@ class Fmu:
         self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
         self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
         _LOGGING[self._log_key] = self
+        # an FMI 3 FMU whose inputs are polynomials (interpolateInputs) and that asks for them inside
+        # doStep: the kernel answers its intermediate-update callback (`_instantiate_intermediate`)
+        asks = not self.model_exchange and bool(intermediate_inputs(self.md))
+        self.intermediate = None
+        self._ask = intermediate_update and asks
         try:
             safe_extract(self.path, self.dir)
             self._load()
@@ -250,7 +257,10 @@ class Fmu:
 
                 interface = FMU3ScheduledExecution if self.scheduled else FMU3Slave
                 self.slave = (FMU3Model if self.model_exchange else interface)(**kw)
-                self.slave.instantiate(logMessage=self._log3)
+                if self._ask:
+                    self._instantiate_intermediate()
+                else:
+                    self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
             else:
@@ -283,6 +293,36 @@ class Fmu:
             raise FmuError(self.describe(str(e))) from e
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
+
+    def _instantiate_intermediate(self) -> None:
+        """fmi3InstantiateCoSimulation as fmpy's instantiate() but with the kernel's intermediate-update
+        callback and an environment of its own (native.Intermediate, which fmpy cannot pass), filled
+        by the kernel's tables: the FMU asks the kernel for its inputs at its stage times, no Python."""
+        from fmpy.fmi3 import fmi3IntermediateUpdateCallback, fmi3LogMessageCallback, fmi3ValueReference
+
+        from master.runtime import native
+
+        s = self.slave
+        self.intermediate = native.Intermediate()
+        s.logMessage = fmi3LogMessageCallback(self._log3)  # kept from the garbage collector, as fmpy does
+        s.intermediateUpdate = fmi3IntermediateUpdateCallback(native.intermediate_update())
+        resources = str(Path(s.unzipDirectory) / "resources") + "/"
+        s.component = s.fmi3InstantiateCoSimulation(
+            self.name.encode("utf-8"),
+            s.guid.encode("utf-8"),
+            resources.encode("utf-8"),
+            False,
+            False,
+            False,
+            False,
+            (fmi3ValueReference * 0)(),
+            0,
+            ctypes.addressof(self.intermediate),
+            s.logMessage,
+            s.intermediateUpdate,
+        )
+        if not s.component:
+            raise FmuError(self.describe("fmi3InstantiateCoSimulation failed"))
 
     def _load1(self, kw: dict) -> None:
         """Instantiate an FMI 1.0 Co-Simulation slave, its log messages to `last_log`."""

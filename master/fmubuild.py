@@ -758,6 +758,12 @@ def _start_text3(v: dict[str, Any]) -> str:
     return " ".join([one] * v["size"])
 
 
+def _intermediate_input(v: dict[str, Any]) -> bool:
+    """An input the importer may set inside doStep through the intermediate-update callback (FMI 3.0
+    intermediateUpdate="true"): a continuous Float64 input, fmus/fmi/instance.c intermediate_input."""
+    return v["causality"] == "input" and v["type"] == "Real" and v["variability"] == "continuous"
+
+
 def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     """FMI 3.0 Model Exchange and Co-Simulation modelDescription.xml.  Value references are the
     table positions (unique across all types); `time`, the independent variable, takes the next one."""
@@ -774,6 +780,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         variableNamingConvention="flat",
     )
     scalars_only = not any(v["dimensions"] for v in variables)
+    intermediate = [vr for vr, v in enumerate(variables) if _intermediate_input(v)]
     clocks = {c["vr"]: c for c in desc["clocks"]}
     if clocks:  # Scheduled Execution alone: the master activates its partitions
         etree.SubElement(
@@ -803,6 +810,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             # fmi3GetDirectionalDerivative takes scalar Float64 variables only
             providesDirectionalDerivatives="true" if scalars_only else "false",
             canHandleVariableCommunicationStepSize="true",
+            providesIntermediateUpdate="true" if intermediate else "false",
             canReturnEarlyAfterIntermediateUpdate="false",
             hasEventMode="false",
         )
@@ -863,6 +871,8 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             e.set("start", _start_text3(v))
         if v["derivative_of"] != -1:
             e.set("derivative", str(v["derivative_of"]))
+        if vr in intermediate:
+            e.set("intermediateUpdate", "true")
         for extent in v["dimensions"]:
             etree.SubElement(e, "Dimension", start=str(extent))
         if has_start and kind in ("String", "Binary"):

@@ -13,6 +13,9 @@
  *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
  *     needs no event handling;
  *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply;
+ *   - intermediate update (providesIntermediateUpdate where the model has continuous Float64
+ *     inputs, declared intermediateUpdate="true"): given the callback, doStep asks the importer for
+ *     those inputs at each new stage time of its solver (step.c) and uses what it sets there;
  *   - Model Exchange as FMI 2.0's (the model's event indicators, event update and step events,
  *     nominals 1): after fmi3ExitInitializationMode the instance is in Event Mode,
  *     fmi3UpdateDiscreteStates runs the model's event update, fmi3EnterContinuousTimeMode, then
@@ -21,7 +24,8 @@
  *     fmi3GetClock of output clocks, fmi3GetIntervalDecimal; its Clock Activation Mode is Step Mode.
  * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
  * Event Mode of Co-Simulation, fmi3SetClock and the other interval and shift calls, Configuration
- * Mode, intermediate updates, output derivatives, adjoint derivatives, variable dependency queries.
+ * Mode, intermediate variables to get, output derivatives, adjoint derivatives, variable dependency
+ * queries.
  */
 #include <stdio.h>
 #include <string.h>
@@ -56,6 +60,24 @@ fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, siz
     return (fmi3Status)set_debug_logging(inst, "fmi3SetDebugLogging", loggingOn, nCategories, categories);
 }
 
+/* providesIntermediateUpdate: the model has inputs to ask for (master/fmubuild.py declares it so). */
+static int has_intermediate_inputs(void) {
+    for (int vr = 0; vr < MODEL.n_variables; vr++)
+        if (intermediate_input(&MODEL.variables[vr])) return 1;
+    return 0;
+}
+
+/* step.c inputs_at: the importer sets the intermediate-update inputs of time t inside its callback
+ * (Intermediate Update Mode: fmi3SetFloat64 of those inputs only).  The FMU never returns early. */
+static void ask_intermediate_inputs(Instance *inst, double t) {
+    fmi3Boolean early = fmi3False;
+    fmi3Float64 early_time = t;
+    inst->in_intermediate_update = 1;
+    ((fmi3IntermediateUpdateCallback)inst->callback)(inst->env, t, fmi3True, fmi3False, fmi3False, fmi3False,
+                                                     &early, &early_time);
+    inst->in_intermediate_update = 0;
+}
+
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                          fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
@@ -70,7 +92,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     /* No Event Mode (hasEventMode="false"): eventModeUsed changes nothing; the FMU never
      * returns early and offers no intermediate variables. */
     (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
-    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables, (void)intermediateUpdate;
+    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables;
     if (MODEL.me_only || MODEL.n_clocks) { /* its description has no CoSimulation */
         snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers %s only", MODEL.identifier,
                  MODEL.n_clocks ? "Scheduled Execution" : "Model Exchange");
@@ -88,6 +110,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                         loggingOn);
     if (!inst && logMessage)
         logMessage(instanceEnvironment, fmi3Error, "logError", "fmi3InstantiateCoSimulation: out of memory");
+    if (inst && intermediateUpdate && has_intermediate_inputs()) {
+        inst->callback = (void (*)(void))intermediateUpdate;
+        inst->ask_inputs = ask_intermediate_inputs;
+    }
     return inst;
 }
 

@@ -250,10 +250,19 @@ Initial effective_initial(const Variable *v) {
     return I_DEFAULT;
 }
 
+int intermediate_input(const Variable *v) {
+    return v->causality == C_INPUT && v->type == T_REAL && v->variability == V_CONTINUOUS;
+}
+
 /* Rules for SetXXX per state (FMI 2.0 section 3.2.3 / 4.2.4; FMI 3.0 Co-Simulation without
- * Event Mode keeps them: Step Mode is StepComplete). */
+ * Event Mode keeps them: Step Mode is StepComplete; inside the intermediate-update callback only
+ * the intermediate-update inputs). */
 const char *not_settable_reason(const Instance *inst, const Variable *v) {
     Initial init = effective_initial(v);
+    if (inst->in_intermediate_update)
+        return intermediate_input(v) ? NULL
+                                     : "only inputs with intermediateUpdate=\"true\" may be set in Intermediate "
+                                       "Update Mode";
     if (v->variability == V_CONSTANT) return "it is a constant";
     if (v->causality == C_INDEPENDENT) return "it is the independent variable";
     if (v->causality == C_CALCULATED_PARAMETER) return "it is a calculated parameter";

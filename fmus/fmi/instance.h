@@ -136,6 +136,16 @@ struct Instance {
     double rhs_t;
     double *rhs_x, *rhs_dx;  /* n_states */
     double *rhs_u;           /* n_real_inputs */
+
+    /* FMI 3.0 intermediate update (step.c inputs_at): ask_inputs, set by fmi3.c where the importer passed
+     * a callback, asks it for the intermediate-update inputs (intermediate_input) of time t inside doStep
+     * (NULL: inputs held, or the FMI 2.0 input polynomials); callback: the importer's, cast back by
+     * fmi3.c; asked_time: the time last asked in the running doStep (NAN: none yet); in_intermediate_update:
+     * inside the callback, where only those inputs may be set. Not state. */
+    void (*ask_inputs)(Instance *inst, double t);
+    void (*callback)(void);
+    double asked_time;
+    int in_intermediate_update;
 };
 
 /* log.c */
@@ -169,6 +179,9 @@ const Variable *variable_of(const Instance *inst, unsigned vr);
 size_t variable_size(const Instance *inst, unsigned vr);
 const char *type_name(const Instance *inst, int type);
 Initial effective_initial(const Variable *v);
+/* 1 for an input the importer may set in Intermediate Update Mode (FMI 3.0 intermediateUpdate="true"):
+ * a continuous Float64 input (master/fmubuild.py declares the same ones). */
+int intermediate_input(const Variable *v);
 /* NULL if `v` may be set in the current state, else the reason. */
 const char *not_settable_reason(const Instance *inst, const Variable *v);
 /* The variable behind vr if it exists and its type is in `types`; else logs and returns NULL. */

@@ -105,7 +105,11 @@ def samples_read(plan: Plan, name: str) -> list[bool]:
 def open_fmu(sc: Scenario, comp: Component) -> Fmu:
     """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode."""
     fmu = Fmu(
-        comp.fmu_path, comp.name, model_exchange=comp.model_exchange is not None, scheduled=comp.scheduled
+        comp.fmu_path,
+        comp.name,
+        model_exchange=comp.model_exchange is not None,
+        intermediate_update=comp.interpolate_inputs,
+        scheduled=comp.scheduled,
     )
     try:
         fmu.set_values(dict(comp.parameters))

@@ -14,6 +14,7 @@
 #ifndef MASTER_KERNEL_H
 #define MASTER_KERNEL_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 /* Value kinds of coupled signals and recorded values: Real (FMI 2 Real, FMI 3 Float64), Integer
@@ -173,6 +174,28 @@ typedef struct {
 
 /* An FMI function of any signature (cast to its own type before the call). */
 typedef void (*mk_function)(void);
+
+/* FMI 3 intermediate update: the instanceEnvironment of an FMU that providesIntermediateUpdate and
+ * whose inputs are polynomials (interpolateInputs), passed with mk_intermediate_update at its
+ * instantiation (Python owns it). Where the FMU asks inside doStep (intermediateVariableSetRequested),
+ * the callback sets its n scalar Float64 inputs declared intermediateUpdate="true" (value references
+ * vrs, the component's Real input slots `slots`) to the step's input polynomials at the time asked, in
+ * the arithmetic of an FMI 2 FMU handed them as input derivatives (fmus/fmi/step.c), with one
+ * fmi3SetFloat64 into `values`; no allocation. The kernel points it at its component, the step's
+ * input blocks and communication point before each doStep, and clears u after it: outside the
+ * kernel's doStep the callback sets nothing (inputs held). status: the worst status of those calls
+ * (the callback returns none: the kernel checks it after the step); calls counts them. */
+typedef struct {
+    const void *component; /* the mk_component */
+    const double *u;
+    double t0;
+    int32_t n;
+    const int32_t *slots;
+    const uint32_t *vrs;
+    double *values;
+    int32_t status;
+    int64_t calls;
+} mk_intermediate;
 
 /* A Scheduled Execution component (master/clocks.py): no doStep; in each communication step, from
  * point j to j + 1 of its grid, its inputs (those at t_{j+1}) are set, the partitions of its input
@@ -334,6 +357,9 @@ typedef struct {
      * there) and each communication step begins with the event iteration (an input event) and
      * continuous-time mode; the history restarts only where the states changed. */
     int32_t me_input_events;
+    /* FMI 3 intermediate update (NULL: none): the instance's environment, answered by
+     * mk_intermediate_update */
+    mk_intermediate *intermediate;
     mk_scheduled *scheduled; /* NULL: none (a Co-Simulation or Model Exchange component) */
 } mk_component;
 
@@ -522,6 +548,10 @@ int32_t mk_scheduled_start(mk_kernel *k, int32_t c);
 /* Step macro steps n_from .. n_to - 1 (fewer on a return other than MK_DONE); *n_next: the first
  * macro step not done. budget_s > 0: return MK_YIELD once that much wall time has passed. */
 int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next);
+/* fmi3IntermediateUpdateCallback of FMUs with an mk_intermediate environment (see there). */
+void mk_intermediate_update(void *environment, double time, bool set_requested, bool get_allowed,
+                            bool step_finished, bool can_return_early, bool *early_return_requested,
+                            double *early_return_time);
 /* Set a counter and wake its waiters (the supervisor draining the results ring). */
 void mk_publish(mk_counter *c, int64_t value);
 /* Raise the cancel flag and wake every waiter (a supervisor stopping the run). */

@@ -207,6 +207,23 @@ class Stimulus(C.Structure):
     ]
 
 
+class Intermediate(C.Structure):
+    """kernel.h mk_intermediate: the environment of an FMU answered by the kernel's intermediate-update
+    callback (`intermediate_update`)."""
+
+    _fields_ = [
+        ("component", _p),
+        ("u", C.POINTER(_f64)),
+        ("t0", _f64),
+        ("n", _i32),
+        ("slots", C.POINTER(_i32)),
+        ("vrs", C.POINTER(_u32)),
+        ("values", C.POINTER(_f64)),
+        ("status", _i32),
+        ("calls", _i64),
+    ]
+
+
 class Scheduled(C.Structure):
     """kernel.h mk_scheduled: a Scheduled Execution component's clocks (master.clocks)."""
 
@@ -337,6 +354,7 @@ class Component(C.Structure):
         ("me_events", _p),
         ("me_event_count", C.POINTER(_i64)),
         ("me_input_events", _i32),
+        ("intermediate", C.POINTER(Intermediate)),
         ("scheduled", C.POINTER(Scheduled)),
     ]
 
@@ -453,8 +471,8 @@ class Kernel(C.Structure):
     ]
 
 
-STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform, Loop,
-           Scheduled)  # fmt: skip
+STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform, Loop)
+STRUCTS += (Intermediate, Scheduled)  # mk_layout's order
 
 
 class KernelBuildError(RuntimeError):
@@ -541,3 +559,8 @@ def library() -> C.CDLL:
     lib.solver_memory_size.argtypes = [C.c_int]
     lib.solver_memory_size.restype = C.c_size_t
     return lib
+
+
+def intermediate_update() -> int:
+    """The address of the kernel's fmi3IntermediateUpdateCallback (kernel.h mk_intermediate_update)."""
+    return C.cast(library().mk_intermediate_update, _p).value

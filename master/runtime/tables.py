@@ -27,7 +27,7 @@ from master.backends.component import (
 )
 from master.clocks import TICK_PERIODIC, every_from_fmu
 from master.coupling import weights
-from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, lookup
+from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, intermediate_inputs, lookup
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
@@ -416,10 +416,12 @@ class CompiledPlan:
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
         c.in_vrs = _ptr(self._array(in_vrs, np.uint32), C.c_uint32)
         n_deriv_blocks = len(blocks) - nv
-        if n_deriv_blocks and c.set_derivatives is None and not fmu.model_exchange:
+        asks = fmu.intermediate is not None  # an FMI 3 FMU asks for its inputs inside doStep
+        if n_deriv_blocks and c.set_derivatives is None and not fmu.model_exchange and not asks:
             raise FmuError(f"{pc.name}: inputs as polynomials need fmi2SetRealInputDerivatives")
-        # discrete inputs are held: no derivatives; a Model Exchange component's polynomials are the kernel's
-        c.n_derivatives = 0 if fmu.model_exchange else n_deriv_blocks * c.n_in_real
+        # discrete inputs are held: no derivatives; a Model Exchange component's polynomials are the
+        # kernel's, and so are those of an FMU that asks for its inputs
+        c.n_derivatives = 0 if fmu.model_exchange or asks else n_deriv_blocks * c.n_in_real
         c.derivative_vrs = _ptr(self._array(in_vrs[: c.n_in_real] * n_deriv_blocks, np.uint32), C.c_uint32)
         orders = [d for _, d in blocks[nv:] for _ in range(c.n_in_real)]
         c.derivative_orders = _ptr(self._array(orders, np.int32), C.c_int32)
@@ -469,8 +471,22 @@ class CompiledPlan:
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
         if fmu.model_exchange:
             self._model_exchange(c, pc, fmu, in_names)
+        if asks:
+            self._intermediate(c, fmu, in_names[: c.n_in_real])
         if pc.scheduled is not None:
             self._scheduled(c, pc, fmu)
+
+    def _intermediate(self, c: native.Component, fmu: Fmu, real_inputs: list[str]) -> None:
+        """An FMU that asks for its inputs inside doStep (kernel.h mk_intermediate): which of its Real
+        inputs the kernel's callback sets, the FMU's intermediate-update ones (others are held)."""
+        asked = set(intermediate_inputs(fmu.md))
+        slots = [i for i, name in enumerate(real_inputs) if name in asked]
+        iu = fmu.intermediate
+        iu.n, iu.calls = len(slots), 0
+        iu.slots = _ptr(self._array(slots, np.int32), C.c_int32)
+        iu.vrs = _ptr(self._array([variable(fmu, real_inputs[i]).vr for i in slots], np.uint32), C.c_uint32)
+        iu.values = _ptr(self._array(np.zeros(len(slots)), np.float64), C.c_double)
+        c.intermediate = C.pointer(iu)
 
     def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
         """A Scheduled Execution component's clock tables (kernel.h: mk_scheduled, master.clocks)."""

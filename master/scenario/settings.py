@@ -295,7 +295,8 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         if asked and comp.info is not None and not can:
             ctx.at(
                 ce,
-                f"interpolateInputs: {comp.info.path.name} cannot interpolate inputs (canInterpolateInputs)",
+                f"interpolateInputs: {comp.info.path.name} cannot interpolate inputs "
+                "(canInterpolateInputs; FMI 3: providesIntermediateUpdate, inputs intermediateUpdate)",
             )
         # The global default only applies where the FMU can; an explicit request must be honoured.
         s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
