@@ -219,3 +219,122 @@ def test_the_cli_validates_and_runs_the_scene(tmp_path):
         rows = list(csv.DictReader(f))
     assert [int(r["clocks.totalInClockTicks"]) for r in rows] == reference()["totalInClockTicks"]
     assert Fraction(rows[-1]["time"]) == 9
+
+
+class Scheduled:
+    """The project's clocks FMU instantiated for Scheduled Execution through fmpy, its clockUpdate
+    callbacks counted and its log messages kept."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        from fmpy import extract, read_model_description
+        from fmpy.fmi3 import (
+            FMU3ScheduledExecution,
+            fmi3ClockUpdateCallback,
+            fmi3InstanceEnvironment,
+            fmi3LockPreemptionCallback,
+            fmi3LogMessageCallback,
+            fmi3UnlockPreemptionCallback,
+        )
+
+        path = build_fmu("clocks", fmi=3)
+        md = read_model_description(path)
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.fmu = FMU3ScheduledExecution(
+            guid=md.instantiationToken,
+            unzipDirectory=extract(path, tmp_path / "clocks"),
+            modelIdentifier="clocks",
+            instanceName="c",
+        )
+        self.updates, self.messages = 0, []
+        self._callbacks = (  # kept alive while the instance lives
+            fmi3LogMessageCallback(lambda env, status, category, text: self.messages.append(text.decode())),
+            fmi3ClockUpdateCallback(self._updated),
+            fmi3LockPreemptionCallback(lambda: None),
+            fmi3UnlockPreemptionCallback(lambda: None),
+        )
+        self.fmu.component = self.fmu.fmi3InstantiateScheduledExecution(
+            b"c",
+            md.instantiationToken.encode(),
+            b"",
+            False,
+            False,
+            fmi3InstanceEnvironment(),
+            *self._callbacks,
+        )
+        assert self.fmu.component
+        self.fmu.enterInitializationMode(startTime=0.0)
+        self.fmu.exitInitializationMode()
+
+    def _updated(self, env) -> None:  # noqa: ANN001
+        self.updates += 1
+
+    def activate(self, clock: str, t: float) -> None:
+        self.fmu.activateModelPartition(self.vr[clock], t)
+
+    def get(self, name: str) -> int:
+        return self.fmu.getInt32([self.vr[name]])[0]
+
+    def interval(self, clock: str) -> tuple[float, int]:
+        from fmpy.fmi3 import fmi3Float64, fmi3IntervalQualifier, fmi3ValueReference
+
+        interval, qualifier = (fmi3Float64 * 1)(), (fmi3IntervalQualifier * 1)()
+        self.fmu.getIntervalDecimal((fmi3ValueReference * 1)(self.vr[clock]), interval, qualifier)
+        return interval[0], qualifier[0]
+
+
+def test_the_layer_runs_partitions_ticks_output_clocks_and_counts_clocks_down(tmp_path):
+    from fmpy.fmi1 import FMICallException
+
+    fmu = Scheduled(tmp_path)
+    assert fmu.interval("inClock3") == (0.0, 0)  # fmi3IntervalNotYetKnown
+    assert fmu.interval("inClock1") == (1.0, 1)  # its constant interval, unchanged
+    for t in range(4):
+        fmu.activate("inClock1", float(t))
+    assert fmu.get("inClock1Ticks") == 4 and fmu.updates == 0
+    fmu.activate("inClock1", 4.0)  # counts inClock3 down by 0 s; the total becomes 5: outClock ticks
+    assert fmu.updates == 2
+    assert fmu.interval("inClock3") == (0.0, 2)  # fmi3IntervalChanged, then read: unchanged
+    assert fmu.interval("inClock3") == (0.0, 1)
+    assert fmu.fmu.getClock([fmu.vr["outClock"]]) == [True]
+    assert fmu.fmu.getClock([fmu.vr["outClock"]]) == [False]  # a tick is read once
+    fmu.fmu.setInt32([fmu.vr["input2"]], [7])
+    fmu.activate("inClock3", 4.0)
+    fmu.activate("inClock2", 4.0)
+    assert [fmu.get(n) for n in ("inClock3Ticks", "output3", "result2", "input2", "totalInClockTicks")] == [
+        1, 1000, 7, 0, 7
+    ]  # fmt: skip
+    with pytest.raises(FMICallException):
+        fmu.activate("outClock", 5.0)
+    assert 'Clock "outClock" is not an input clock' in fmu.messages[-1]
+    with pytest.raises(FMICallException):
+        fmu.fmu.getClock([fmu.vr["inClock1"]])
+    assert 'Clock "inClock1" is not an output clock' in fmu.messages[-1]
+    fmu.fmu.terminate()
+    fmu.fmu.freeInstance()
+
+
+def test_the_layer_offers_a_model_with_clocks_for_scheduled_execution_only(tmp_path):
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Slave
+
+    path = build_fmu("clocks", fmi=3)
+    md = read_model_description(path)
+    assert md.coSimulation is None and md.modelExchange is None and md.scheduledExecution is not None
+    slave = FMU3Slave(
+        guid=md.instantiationToken, unzipDirectory=extract(path, tmp_path / "cs"), modelIdentifier="clocks"
+    )
+    messages = []
+    with pytest.raises(Exception, match="instantiate"):
+        slave.instantiate(logMessage=lambda env, status, category, text: messages.append(text.decode()))
+    assert messages == ["fmi3InstantiateCoSimulation: clocks offers Scheduled Execution only"]
+
+
+def test_implementation_scheduled_execution_needs_that_interface(tmp_path):
+    """SSP 2.0's implementation="ScheduledExecution" on an FMU that has no such interface."""
+    path = ssd(tmp_path / "msd.ssd", {"a": "msd", "b": "msd"}, [("a", "x", "b", "x_in")])
+    text = path.read_text().replace('Description version="1.0"', 'Description version="2.0"')
+    path.write_text(
+        text.replace('<ssd:Component name="a"', '<ssd:Component implementation="ScheduledExecution" name="a"')
+    )
+    (problem,) = _problems(path)
+    assert 'implementation="ScheduledExecution": msd.fmu has no Scheduled Execution interface' in problem
