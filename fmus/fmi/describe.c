@@ -82,7 +82,8 @@ int main(void) {
            m->initialize ? "true" : "false", m->jacobian ? "true" : "false", m->outputs ? "true" : "false");
     printf("\"n_event_indicators\": %d, \"event_indicator_vrs\": ", m->n_event_indicators);
     json_ints(m->event_indicator_vrs, m->event_indicator_vrs ? m->n_event_indicators : 0);
-    printf(", \"has_step_event\": %s,\n", m->step_event ? "true" : "false");
+    printf(", \"has_step_event\": %s, \"has_update\": %s,\n", m->step_event ? "true" : "false",
+           m->update ? "true" : "false");
     printf("\"default_step_size\": ");
     json_number(m->default_step_size);
     printf(",\n\"variables\": [\n");

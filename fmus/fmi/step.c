@@ -67,6 +67,10 @@ int completed_in_step(void *ctx, double t, const double *x, int *event, int *sto
 int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop) {
     Instance *inst = ctx;
     int changed = 0;
+    if (inst->event_mode_used && (inst->early_return_allowed || t >= inst->comm_end)) {
+        *stop = ODE_EVENT; /* FMI 3.0 event mode: the importer handles it (fmi3UpdateDiscreteStates) */
+        return 0;
+    }
     if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
     inst->core->time = t;
     scatter_states(inst, x);
@@ -112,13 +116,25 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
                   t, c->time);
         return LAYER_ERROR;
     }
-    steps = internal_steps(inst, function, H);
-    if (steps == 0) return LAYER_ERROR;
-    h = H / (double)steps;
+    /* the rest of a step returned early from (FMI 3.0 event mode): on that step's grid, to t + H */
+    const int resume = c->grid_steps > 0 && t > c->grid_t0 &&
+                       t + H - c->grid_t0 <= (double)c->grid_steps * c->grid_h * (1.0 + 1e-9) &&
+                       t + H - c->grid_t0 >= (double)c->grid_steps * c->grid_h * (1.0 - 1e-9);
+    double t0 = t, reached = t + H;
+    if (resume) {
+        steps = c->grid_steps, h = c->grid_h, t0 = c->grid_t0;
+    } else {
+        steps = internal_steps(inst, function, H);
+        if (steps == 0) return LAYER_ERROR;
+        h = H / (double)steps;
+    }
+    c->grid_steps = 0;
+    c->event_pending = 0;
 
     for (int i = 0; i < inst->n_real_inputs; i++)
         inst->input_values[i] = inst->reals[inst->real_input_slot[i]];
     inst->comm_point = t;
+    inst->comm_end = t + H;
     gather_states(inst, inst->x);
     if (n > 0 || m->update) { /* substep j from t + j h (from the integer j: no drift), events on the way */
         const OdeProblem problem = {kind,
@@ -133,11 +149,17 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
                                     event_in_step,
                                     inst,
                                     EVENT_TOLERANCE};
-        rc = ode_advance(&problem, inst->events, t, h, steps, t + H, inst->x, &c->next_event_time, &c->events);
+        rc = ode_advance_from(&problem, inst->events, t0, h, steps, t + H, t, inst->x, &c->next_event_time,
+                              &c->events, &reached);
         if (rc == ODE_STOP) { /* the model ends the simulation: this step completes */
             c->terminate = 1;
             rc = 0;
-        }
+        } else if (rc == ODE_EVENT) { /* event mode: the step ends at the event; the importer handles it */
+            c->event_pending = 1;
+            if (reached < t + H) c->grid_steps = steps, c->grid_h = h, c->grid_t0 = t0;
+            rc = 0;
+        } else
+            reached = t + H;
     }
 
     /* Restore the inputs the master set and forget this step's derivatives. */
@@ -153,7 +175,7 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
         return c->fatal ? LAYER_FATAL : LAYER_ERROR;
     }
     scatter_states(inst, inst->x);
-    c->time = t + H;
+    c->time = c->event_pending ? reached : t + H;
     mark_dirty(inst);
     if (refresh(inst, 0, function) || check_finite(inst, function)) {
         c->state = ST_ERROR;
