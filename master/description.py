@@ -103,6 +103,8 @@ FMI_FUNCTIONS = {
     "enter_event_mode": (None, "fmi2EnterEventMode", "fmi3EnterEventMode"),
     "update_discrete_states": (None, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
     "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
+    # FMI 3 Co-Simulation with Event Mode (kernel.h: mk_component.cs_events)
+    "enter_step_mode": (None, None, "fmi3EnterStepMode"),
 }
 
 
@@ -402,6 +404,13 @@ def runs_as_model_exchange(md: ModelDescription, asked: bool = False) -> bool:
     component: asked for (a component's modelExchange setting), or the FMU has no Co-Simulation
     interface."""
     return asked or md.coSimulation is None
+
+
+def uses_event_mode(md: ModelDescription, model_exchange: bool = False) -> bool:
+    """Whether the master runs an FMU of description `md` in FMI 3 Co-Simulation with Event Mode
+    (eventModeUsed, early return allowed): it declares hasEventMode and runs as Co-Simulation."""
+    cs = md.coSimulation
+    return md.fmiVersion.startswith("3") and not model_exchange and cs is not None and bool(cs.hasEventMode)
 
 
 # -- reading modelDescription.xml -------------------------------------------------------------------

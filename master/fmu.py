@@ -32,6 +32,7 @@ from master.description import (
     runs_as_model_exchange,
     typed,
     unsupported,
+    uses_event_mode,
     variables_of,
 )
 
@@ -198,7 +199,12 @@ class Fmu:
     """
 
     def __init__(
-        self, path: Path, instance_name: str, workdir: Path | None = None, model_exchange: bool = False
+        self,
+        path: Path,
+        instance_name: str,
+        workdir: Path | None = None,
+        model_exchange: bool = False,
+        event_mode: bool = True,
     ):
         self.path = Path(path)
         self.name = instance_name
@@ -209,6 +215,9 @@ class Fmu:
         if self.model_exchange and (self.md.modelExchange is None or self.fmi == 1):
             raise FmuError(f"{instance_name}: {self.path.name} has no Model Exchange 2.0 or 3.0 interface")
         self.fmi3 = self.fmi == 3
+        # FMI 3 Co-Simulation with Event Mode (hasEventMode): instantiated with eventModeUsed and early
+        # return allowed; the kernel handles its events (kernel.h mk_component.cs_events)
+        self.event_mode = event_mode and uses_event_mode(self.md, self.model_exchange)
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
@@ -240,7 +249,10 @@ class Fmu:
                 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
                 self.slave = (FMU3Model if self.model_exchange else FMU3Slave)(**kw)
-                self.slave.instantiate(logMessage=self._log3)
+                if self.event_mode:
+                    self.slave.instantiate(logMessage=self._log3, eventModeUsed=True, earlyReturnAllowed=True)
+                else:
+                    self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
             else:
@@ -522,12 +534,19 @@ class Fmu:
             self.slave.exitInitializationMode()
             if self.model_exchange:
                 self._continuous_time()
+            elif self.event_mode:  # in Event Mode after initialisation
+                self._discrete_states()
+                self.slave.enterStepMode()
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
     def _continuous_time(self) -> None:
-        """A Model Exchange FMU after initialisation: the event iteration (new discrete states until
-        none are needed), then continuous-time mode."""
+        """A Model Exchange FMU after initialisation: the event iteration, then continuous-time mode."""
+        self._discrete_states()
+        self.slave.enterContinuousTimeMode()
+
+    def _discrete_states(self) -> None:
+        """The event iteration after initialisation: new discrete states until none are needed."""
         for _ in range(1000):
             if self.fmi3:
                 needed, terminate, *_, timed, when = self.slave.updateDiscreteStates()
@@ -540,7 +559,6 @@ class Fmu:
                 break
         else:
             raise FmuError(self.describe("its event iteration after initialisation never ends (1000 rounds)"))
-        self.slave.enterContinuousTimeMode()
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""

@@ -696,7 +696,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (lastSuccessfulTime) *lastSuccessfulTime = inst->core->time;
     if (status <= LAYER_WARNING && inst->core->event_pending) { /* stopped at an event (event mode) */
         if (eventHandlingNeeded) *eventHandlingNeeded = fmi3True;
-        if (earlyReturn) *earlyReturn = inst->core->time < currentCommunicationPoint + communicationStepSize;
+        if (earlyReturn) *earlyReturn = inst->core->grid_steps > 0; /* before the step's end */
     }
     if (status == LAYER_DISCARD && inst->core->terminate) {
         /* The step completed and the model asks to end the simulation (FMI 3.0, 4.2.4). */

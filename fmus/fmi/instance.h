@@ -75,7 +75,7 @@ typedef struct {
      * internal steps, which the doStep completing it goes on with (grid_steps 0: none) */
     int event_pending;
     long long grid_steps;
-    double grid_t0, grid_h;
+    double grid_t0, grid_h, grid_t1;
 } Core;
 
 /* A Binary slot of the block. */

@@ -1065,12 +1065,85 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     return MK_DONE;
 }
 
-/* Start-up: an ME component's multistep history saved with its FMU state (save) or restored. */
+/* Start-up: an ME component's multistep history, an FMI 3 event-mode component's discrete inputs as set,
+ * saved with its FMU state (save) or restored. */
 static void me_history(mk_component *c, bool save) {
+    const size_t held = sizeof(double) * (size_t)c->n_cs_held; /* FMI 3 event mode: the discrete inputs set */
+    if (held) save ? memcpy(c->cs_held_saved, c->cs_held, held) : memcpy(c->cs_held, c->cs_held_saved, held);
     if (!c->me) return;
     const size_t size = sizeof(double) * solver_memory_size(c->n_states);
     if (save) memcpy(c->me_memory_saved, c->me_memory, size), c->me_next_event_saved = c->me_next_event;
     else memcpy(c->me_memory, c->me_memory_saved, size), c->me_next_event = c->me_next_event_saved;
+}
+
+/* -- FMI 3 Co-Simulation event mode (kernel.h: mk_component.cs_events) ------------------------------- */
+
+/* Whether input slot i is discrete: an FMI 3 FMU in event mode takes a change of it in event mode only. */
+static bool discrete_input(const mk_component *c, int32_t i) {
+    const int32_t typed = c->n_in - c->n_in_typed;
+    return i >= c->n_in_real && (i < typed || c->in_kinds[i - typed] != MK_FLOAT32);
+}
+
+/* Whether a discrete input of u differs from the value last set (the first: none set yet). */
+static bool discrete_changed(const mk_component *c, const double *u) {
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
+        if (discrete_input(c, i) && u[i] != c->cs_held[d++]) return true;
+    return false;
+}
+
+static void hold_discrete(mk_component *c, const double *u) {
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
+        if (discrete_input(c, i)) c->cs_held[d++] = u[i];
+}
+
+/* The event iteration of an FMI 3 Co-Simulation FMU at its current time (point j's step): event mode,
+ * its inputs u set there where given (an input event; NULL: those of the step, held), then
+ * fmi3UpdateDiscreteStates until no update is needed (at most MK_EVENT_ROUNDS, else MK_EVENT), step
+ * mode. *terminate: 1 when the FMU ends the simulation (left in event mode). */
+static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, int *terminate) {
+    mk_component *c = &k->components[ci];
+    int32_t call = MK_CALL_ENTER_EVENT_MODE;
+    int st = ((fmi_mode *)c->enter_event_mode)(c->instance);
+    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u) hold_discrete(c, u);
+    bool needed = true, end = false;
+    for (int32_t round = 0; needed; round++) {
+        bool nominals = false, values = false, defined = false;
+        double when = 0.0;
+        if (round == MK_EVENT_ROUNDS) return fail(k, MK_EVENT, ci, MK_CALL_UPDATE_DISCRETE_STATES, 0, j);
+        st = ((fmi3_update_discrete_states *)c->update_discrete_states)(c->instance, &needed, &end, &nominals, &values,
+                                                                       &defined, &when);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_UPDATE_DISCRETE_STATES, st, j);
+        if (end) return *terminate = 1, MK_DONE;
+    }
+    (*c->me_event_count)++;
+    st = ((fmi_mode *)c->enter_step_mode)(c->instance);
+    return st > STATUS_OK ? fail(k, MK_FMI_ERROR, ci, MK_CALL_ENTER_STEP_MODE, st, j) : MK_DONE;
+}
+
+/* fmi3DoStep of an FMU in event mode from point j (time t) to t + h: at an event it reports, the event
+ * iteration at once (its outputs at t + h are those after the event); where it returned early there
+ * (a time, state or step event inside the step), the rest of the step after it, its inputs held, so
+ * that its communication points stay those of the schedule. *terminate: 1 when it ends the simulation. */
+static int32_t cs_step(mk_kernel *k, int32_t ci, double t, int64_t j, bool final, int *terminate) {
+    mk_component *c = &k->components[ci];
+    const double end = t + c->h;
+    double from = t;
+    for (int64_t events = 0;; events++) {
+        bool event = false, early = false, stop = false;
+        double last = end;
+        if (events > MK_EVENT_ROUNDS * 1000) /* events without end inside one step (a Zeno point) */
+            return fail(k, MK_EVENT, ci, MK_CALL_DO_STEP, 0, j);
+        const double size = events ? end - from : c->h; /* (the FMU ends the rest at its step's end) */
+        int st = ((fmi3_do_step *)c->do_step)(c->instance, from, size, final, &event, &stop, &early, &last);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
+        if (stop) return *terminate = 1, MK_DONE;
+        if (!event) return MK_DONE;
+        int32_t code = cs_event(k, ci, NULL, j, terminate);
+        if (code != MK_DONE || *terminate || !early || !(last < end)) return code;
+        from = last;
+    }
 }
 
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
@@ -1085,15 +1158,24 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int terminate = 0, st;
         int64_t t0 = now_ns();
         int32_t call = 0;
-        if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        if (c->cs_events && n_in && discrete_changed(c, u)) { /* an input event at t (FMI 3 event mode) */
+            if ((st = cs_event(k, ci, u, j, &terminate)) != MK_DONE) return st;
+        } else if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, call, st, j);
         const int32_t n_text_in = c->n_in_string + c->n_in_binary;
         if (n_text_in && (st = set_texts(c, c->in_string_vrs, c->string_u + (size_t)m * n_text_in * MK_STRING_SLOT,
                                          c->n_in_string, c->n_in_binary, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
+        if (terminate) { /* it ended the simulation at the input event: before this step */
+            request_stop(k, ci, j - 1, n);
+            return MK_STOPPED;
+        }
         if (c->me) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
+        } else if (c->cs_events) {
+            if ((st = cs_step(k, ci, t, j, final, &terminate)) != MK_DONE) return st;
         } else if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
@@ -1663,6 +1745,7 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     int64_t t0 = now_ns();
     int32_t call = 0;
     if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    if (c->cs_events) hold_discrete(c, u);
     for (int32_t l = 0; l < c->n_string_links; l++) {
         const mk_link *lk = &c->string_links[l];
         const mk_component *src = &k->components[lk->source];

@@ -77,6 +77,8 @@ enum {
     /* Model Exchange events */
     MK_CALL_GET_EVENT_INDICATORS, MK_CALL_ENTER_EVENT_MODE, MK_CALL_UPDATE_DISCRETE_STATES,
     MK_CALL_ENTER_CONTINUOUS_TIME_MODE,
+    /* FMI 3 Co-Simulation event mode */
+    MK_CALL_ENTER_STEP_MODE,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -299,6 +301,21 @@ typedef struct {
      * there) and each communication step begins with the event iteration (an input event) and
      * continuous-time mode; the history restarts only where the states changed. */
     int32_t me_input_events;
+    /* FMI 3 Co-Simulation in event mode (cs_events = 1: instantiated with eventModeUsed and early return
+     * allowed, master/fmu.py). doStep returns at an event (eventHandlingNeeded; earlyReturn with
+     * lastSuccessfulTime, the event's time, inside the step): the kernel does the event iteration there
+     * (fmi3EnterEventMode, fmi3UpdateDiscreteStates until none is needed, fmi3EnterStepMode) and, after
+     * an early return, steps on from that time to the step's end, the inputs held: the component's
+     * communication points stay the schedule's. A discrete input (any kind but Real and Float32) that
+     * changes at a communication point is set in event mode with an event iteration there (an input
+     * event): a discrete signal passes from an event of its source to its consumers at their first
+     * point where they see the new sample. cs_held: the n_cs_held discrete inputs as last set (saved
+     * with the FMU state in start-up: cs_held_saved); events are counted in *me_event_count. */
+    int32_t cs_events;
+    mk_function enter_step_mode;
+    int32_t n_cs_held;
+    double *cs_held;
+    double *cs_held_saved;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

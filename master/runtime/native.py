@@ -82,6 +82,8 @@ CALLS = (
     "enter_event_mode",
     "update_discrete_states",
     "enter_continuous_time_mode",
+    # FMI 3 Co-Simulation event mode
+    "enter_step_mode",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -309,6 +311,11 @@ class Component(C.Structure):
         ("me_events", _p),
         ("me_event_count", C.POINTER(_i64)),
         ("me_input_events", _i32),
+        ("cs_events", _i32),
+        ("enter_step_mode", _p),
+        ("n_cs_held", _i32),
+        ("cs_held", C.POINTER(C.c_double)),
+        ("cs_held_saved", C.POINTER(C.c_double)),
     ]
 
 

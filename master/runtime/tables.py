@@ -446,6 +446,20 @@ class CompiledPlan:
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
         if fmu.model_exchange:
             self._model_exchange(c, pc, fmu, in_names)
+        if fmu.event_mode:
+            self._event_mode(c, pc, fmu, in_kinds)
+
+    def _event_mode(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_kinds: list) -> None:
+        """An FMI 3 Co-Simulation component in event mode (kernel.h: mk_component.cs_events): its
+        discrete inputs as last set, events counted beside its steps."""
+        _require(fmu, "enter_event_mode", pc.name)
+        _require(fmu, "update_discrete_states", pc.name)
+        _require(fmu, "enter_step_mode", pc.name)
+        c.cs_events = 1
+        c.n_cs_held = held = sum(kind not in ("Real", "Float32") for kind in in_kinds)
+        c.cs_held = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
+        c.cs_held_saved = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
+        c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
@@ -842,7 +856,7 @@ class CompiledPlan:
         if call == "solver":
             why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
             return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
-        if call in ME_CALLS or call == "directional_derivative":
+        if call in ME_CALLS or call in ("directional_derivative", "enter_step_mode"):
             slot = "get_directional_derivative" if call == "directional_derivative" else call
             failed = FMICallException(function=FMI_FUNCTIONS[slot][fmu.fmi - 1], status=e.status)
             cause = FmuError(fmu.describe(str(failed)))
