@@ -1084,11 +1084,20 @@ static bool discrete_input(const mk_component *c, int32_t i) {
     return i >= c->n_in_real && (i < typed || c->in_kinds[i - typed] != MK_FLOAT32);
 }
 
-/* Whether a discrete input of u differs from the value last set (the first: none set yet). */
-static bool discrete_changed(const mk_component *c, const double *u) {
+/* Whether a discrete input of u whose sample is of the step's start (at_end 0) or of its end (at_end 1:
+ * its source goes first) differs from the value last set. */
+static bool discrete_changed(const mk_component *c, const double *u, int at_end) {
     for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
-        if (discrete_input(c, i) && u[i] != c->cs_held[d++]) return true;
+        if (discrete_input(c, i) && c->cs_at_end[d++] == at_end && u[i] != c->cs_held[d - 1]) return true;
     return false;
+}
+
+/* u with the discrete inputs whose sample is of the step's end as last set (into c->scratch). */
+static const double *held_at_end(mk_component *c, const double *u) {
+    memcpy(c->scratch, u, sizeof(double) * (size_t)c->n_in);
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
+        if (discrete_input(c, i) && c->cs_at_end[d++]) c->scratch[i] = c->cs_held[d - 1];
+    return c->scratch;
 }
 
 static void hold_discrete(mk_component *c, const double *u) {
@@ -1158,9 +1167,13 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int terminate = 0, st;
         int64_t t0 = now_ns();
         int32_t call = 0;
-        if (c->cs_events && n_in && discrete_changed(c, u)) { /* an input event at t (FMI 3 event mode) */
-            if ((st = cs_event(k, ci, u, j, &terminate)) != MK_DONE) return st;
-        } else if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK)
+        /* FMI 3 event mode: a discrete input that changed is an input event, at t where its sample is of
+         * t, at t + h (after the step, which takes it as it was) where it is of t + h */
+        const bool later = c->cs_events && n_in && discrete_changed(c, u, 1);
+        const double *now = later ? held_at_end(c, u) : u;
+        if (c->cs_events && n_in && discrete_changed(c, u, 0)) {
+            if ((st = cs_event(k, ci, now, j, &terminate)) != MK_DONE) return st;
+        } else if (n_in && (st = set_inputs(c, now, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         const int32_t n_text_in = c->n_in_string + c->n_in_binary;
         if (n_text_in && (st = set_texts(c, c->in_string_vrs, c->string_u + (size_t)m * n_text_in * MK_STRING_SLOT,
@@ -1176,6 +1189,7 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
         } else if (c->cs_events) {
             if ((st = cs_step(k, ci, t, j, final, &terminate)) != MK_DONE) return st;
+            if (later && !terminate && (st = cs_event(k, ci, u, j, &terminate)) != MK_DONE) return st;
         } else if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
