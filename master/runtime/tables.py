@@ -448,7 +448,7 @@ class CompiledPlan:
             self._model_exchange(c, pc, fmu, in_names)
         if fmu.event_mode:
             ahead = {i for lk in links if lk.source_first for i in lk.inputs}
-            self._event_mode(c, pc, fmu, [(n, kind) for n, kind in zip(in_names, in_kinds)], ahead)
+            self._event_mode(c, pc, fmu, list(zip(in_names, in_kinds, strict=True)), ahead)
 
     def _event_mode(
         self, c: native.Component, pc: PlanComponent, fmu: Fmu, inputs: list[tuple[str, str]], ahead: set[str]
