@@ -1,0 +1,183 @@
+"""FMI 3 Co-Simulation in event mode: the project's FMUs with events declare hasEventMode, the master
+instantiates them with eventModeUsed and early return allowed; doStep returns at an event (early
+inside the step), the kernel does the event iteration there and completes the step, so the
+component's communication points stay the schedule's; a discrete input that changes is an input
+event (kernel.h: mk_component.cs_events).
+
+Closed forms: bouncing_ball (state events), stair (time events); fmpy's single-FMU event-mode
+simulation of the same FMU; a network of stair and two latches passing an Int32 at events.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from helpers import run_everywhere
+
+import master.api as api
+from master.fmubuild import build_fmu, fmu_path
+from master.scenario.model import Component, Connection, Scenario, Scheme
+from master.solvers import NUMBERS
+
+EVENT_TOLERANCE = 1e-10  # s, fmus/solvers/solvers.h
+G, E, H0 = 9.81, 0.7, 1.0  # bouncing_ball's defaults
+
+
+def fmu3(name: str) -> Path:
+    return build_fmu(name, fmi=3)
+
+
+def single(name: str, path: Path, stop: Fraction, step: Fraction, **parameters) -> Scenario:
+    comp = Component(name, path, parameters=parameters)
+    return Scenario(Path(f"{name}.ssd"), name, (comp,), (), Fraction(0), stop, step)
+
+
+def bounces(until: float) -> list[float]:
+    """The closed-form bounce times before `until`: t1 = sqrt(2 h0 / g), then flights of 2 e^k v1 / g."""
+    v1 = math.sqrt(2 * G * H0)
+    times = [v1 / G]
+    while times[-1] + 2 * E ** len(times) * v1 / G < until:
+        times.append(times[-1] + 2 * E ** len(times) * v1 / G)
+    return times
+
+
+def at_points(result: np.ndarray, step: float) -> np.ndarray:
+    """fmpy's rows at the communication points (after an event there: its last row of that time)."""
+    t = result["time"]
+    last = np.r_[t[1:] != t[:-1], True]
+    return result[last & np.isclose(t / step, np.round(t / step), rtol=0, atol=1e-9)]
+
+
+def test_the_fmi3_builds_of_models_with_events_declare_event_mode():
+    for name in ("bouncing_ball", "stair", "latch", "ratchet"):
+        assert fmpy.read_model_description(str(fmu3(name))).coSimulation.hasEventMode, name
+    assert not fmpy.read_model_description(str(fmu3("dahlquist"))).coSimulation.hasEventMode
+
+
+def test_bouncing_ball_returns_early_at_its_bounces_and_agrees_with_its_closed_form_and_fmpy():
+    """fmpy's event-mode loop records a row where doStep returned early and one after the event
+    iteration: those times are the bounces, located to the tolerance (bounce k up to 2 k tolerances
+    late, as inside the step). The master's run (every backend) meets them the same way, its
+    samples on the flights' closed form, and equals fmpy's at the communication points."""
+    step, stop = 0.01, 2.0
+    params = {"solver": NUMBERS["rk4"], "internal_step": 0.0025}
+    path = fmu3("bouncing_ball")
+    ref = fmpy.simulate_fmu(
+        str(path), stop_time=stop, output_interval=step, output=["h", "v"], start_values=params,
+        use_event_mode=True, early_return_allowed=True,
+    )  # fmt: skip
+    t = ref["time"]
+    events = t[1:][t[1:] == t[:-1]]  # recorded before and after the event iteration
+    closed = bounces(stop)
+    assert len(events) == len(closed) == 4
+    for k, (found, tk) in enumerate(zip(events, closed, strict=True), start=1):
+        assert 0 <= found - tk <= 2 * k * EVENT_TOLERANCE, (k, found - tk)
+        assert not np.isclose(found / step, round(found / step), rtol=0, atol=1e-6)  # inside a step
+    d = run_everywhere(single("bouncing_ball", path, Fraction(2), Fraction(1, 100), **params))
+    fm = at_points(ref, step)
+    assert len(fm) == len(d)
+    for c in ("h", "v"):
+        np.testing.assert_allclose(d[f"bouncing_ball.{c}"], fm[c], rtol=0, atol=1e-12)
+    # each flight is the parabola of the bounce before it: apex e^(2k) h0
+    for k, tk in enumerate(closed, start=1):
+        end = closed[k] if k < len(closed) else stop
+        flight = (d["time"] > tk + 1e-6) & (d["time"] < end - 1e-6)
+        h, v = d["bouncing_ball.h"][flight], d["bouncing_ball.v"][flight]
+        np.testing.assert_allclose(h + v**2 / (2 * G), E ** (2 * k) * H0, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("solver", ["rk4", "ab3"])
+def test_event_mode_gives_the_bits_of_the_events_handled_inside_dostep(solver):
+    """The FMI 2 build handles its bounces inside doStep; the FMI 3 build in event mode returns at
+    them and completes its step on the same grid of internal steps after the master's event
+    iteration (the multistep history restarted alike): the same numbers, bit for bit."""
+    params = {"solver": NUMBERS[solver], "internal_step": 0.0025}
+    a = api.run(single("bouncing_ball", fmu_path("bouncing_ball"), Fraction(2), Fraction(1, 100), **params))
+    b = api.run(single("bouncing_ball", fmu3("bouncing_ball"), Fraction(2), Fraction(1, 100), **params))
+    assert np.min(a.data["bouncing_ball.v"]) < -4 and np.max(a.data["bouncing_ball.v"]) > 2  # it bounced
+    for name in a.data.dtype.names:
+        assert np.array_equal(a.data[name], b.data[name]), name
+
+
+@pytest.mark.parametrize("step", [Fraction(1, 10), Fraction(3, 10)], ids=["events-at-points", "inside-steps"])
+def test_stair_in_event_mode_counts_its_time_events_exactly(step):
+    """counter(t) = 1 + floor(t); an event inside a step: the FMU returns early there, the rest of the
+    step follows; the master's points stay those of the schedule. fmpy's event mode agrees."""
+    path = fmu3("stair")
+    d = run_everywhere(single("stair", path, Fraction(3), step))
+    times = [Fraction(j) * step for j in range(len(d))]
+    assert times[-1] == 3 and d["time"].tolist() == [float(t) for t in times]
+    assert d["stair.counter"].tolist() == [1 + math.floor(t) for t in times]
+    ref = at_points(
+        fmpy.simulate_fmu(str(path), stop_time=3.0, output_interval=float(step), output=["counter"],
+                          use_event_mode=True, early_return_allowed=True),
+        float(step),
+    )  # fmt: skip
+    assert ref["counter"].tolist() == d["stair.counter"].tolist()
+
+
+def network(scheme: Scheme, fmi: int = 3, period: float = 1.0, stop: int = 3) -> Scenario:
+    """stair (its counter, an Int32 stepped by time events) -> latch a -> latch b, macro step 0.1."""
+    path = fmu3 if fmi == 3 else fmu_path
+    comps = (
+        Component("clock", path("stair"), parameters={"period": period}),
+        Component("a", path("latch")),
+        Component("b", path("latch")),
+    )
+    conns = (Connection("clock", "counter", "a", "u"), Connection("a", "latched", "b", "u"))
+    order = ("clock", "a", "b") if scheme == Scheme.GAUSS_SEIDEL else ()
+    return Scenario(
+        Path("net.ssd"), "net", comps, conns, Fraction(0), Fraction(stop), Fraction(1, 10), scheme, order
+    )
+
+
+def latch_times(d: np.ndarray, name: str, after: float = 0.5) -> list[float]:
+    """The times at which latch `name` latched a change after `after`, from its rows (t_latched
+    where changes grew). At the start b latches a's start value at a's first sample after it: the
+    samples of the start time are read in initialization mode, before a's initial event iteration
+    latches the counter."""
+    changes, when = d[f"{name}.changes"], d[f"{name}.t_latched"]
+    return [float(when[i]) for i in range(1, len(d)) if changes[i] > changes[i - 1] and when[i] > after]
+
+
+def test_a_discrete_signal_passes_along_a_chain_at_its_event_in_gauss_seidel_order():
+    """In the stepping order clock, a, b the counter's time event at t = k (a communication point)
+    is handled by the clock at the end of its step; a takes the new value as an input event at k,
+    after its step to k, and b, fed by a, at k too: the event sequence of one instant, every
+    backend."""
+    d = run_everywhere(network(Scheme.GAUSS_SEIDEL))
+    assert latch_times(d, "a") == latch_times(d, "b") == [1.0, 2.0, 3.0]
+    after = d[d["time"] > 0.5]
+    expected = (1 + np.floor(after["time"] + 1e-9)).tolist()
+    for column in ("clock.counter", "a.latched", "b.latched"):
+        assert after[column].tolist() == expected, column
+
+
+def test_in_jacobi_each_link_passes_the_discrete_signal_at_the_next_macro_step():
+    """Jacobi takes every source's sample of the macro step's start: a sees the counter of time k
+    at k (an input event there, before its step), b sees a's sample of k + 0.1 at k + 0.1. The FMI
+    2 builds, without event mode, latch at their first step event after the change: one step later
+    each."""
+    d = run_everywhere(network(Scheme.JACOBI))
+    assert latch_times(d, "a") == [1.0, 2.0]
+    assert np.allclose(latch_times(d, "b"), [1.1, 2.1], rtol=0, atol=1e-12)
+    old = api.run(network(Scheme.JACOBI, fmi=2)).data
+    assert np.allclose(latch_times(old, "a"), [1.1, 2.1], rtol=0, atol=1e-12)
+    assert np.allclose(latch_times(old, "b"), [1.2, 2.2], rtol=0, atol=1e-12)
+
+
+def test_time_events_between_communication_points_reach_the_consumers_at_their_next_point():
+    """period 0.35 s: the clock returns early at k 0.35 inside its step and completes it; a and b
+    latch the new count at the first point after it, ceil(k 3.5) / 10 (every backend)."""
+    d = run_everywhere(network(Scheme.GAUSS_SEIDEL, period=0.35, stop=2))
+    events = [Fraction(35, 100) * k for k in range(1, 6)]
+    seen = [float(Fraction(math.ceil(e * 10), 10)) for e in events]
+    assert np.allclose(latch_times(d, "a", after=0.2), seen, rtol=0, atol=1e-12)
+    assert np.allclose(latch_times(d, "b", after=0.2), seen, rtol=0, atol=1e-12)
+    expected = [1 + math.floor(Fraction(j, 10) / Fraction(35, 100)) for j in range(len(d))]
+    assert d["clock.counter"].tolist() == expected
