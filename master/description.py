@@ -253,6 +253,7 @@ class Capability:
     event_indicators: int = 0  # Model Exchange: numberOfEventIndicators (watched by the kernel: state events)
     model_identifier: str = ""
     completed_integrator_step: bool = False  # Model Exchange: needsCompletedIntegratorStep
+    event_mode: bool = False  # FMI 3 Co-Simulation: hasEventMode
 
     def depends(self, output: str, inputs: dict[str, Variable]) -> frozenset[str]:
         """The inputs `output` depends on directly (no table: all of `inputs`)."""
@@ -302,6 +303,7 @@ def interfaces(md: ModelDescription) -> dict[str, Capability]:
             event_indicators=int(md.numberOfEventIndicators or 0) if name == MODEL_EXCHANGE else 0,
             model_identifier=kind.modelIdentifier or "",
             completed_integrator_step=name == MODEL_EXCHANGE and bool(kind.needsCompletedIntegratorStep),
+            event_mode=name == CO_SIMULATION and uses_event_mode(md),
         )
     return out
 

@@ -17,10 +17,11 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from helpers import run_everywhere
+from helpers import run_everywhere, ssd
 
 import master.api as api
 from master.fmubuild import build_fmu, fmu_path
+from master.scenario import ScenarioError
 from master.scenario.model import Component, Connection, Scenario, Scheme
 from master.solvers import NUMBERS
 
@@ -181,3 +182,39 @@ def test_time_events_between_communication_points_reach_the_consumers_at_their_n
     assert np.allclose(latch_times(d, "b", after=0.2), seen, rtol=0, atol=1e-12)
     expected = [1 + math.floor(Fraction(j, 10) / Fraction(35, 100)) for j in range(len(d))]
     assert d["clock.counter"].tolist() == expected
+
+
+def test_event_mode_off_for_a_component_handles_its_events_inside_dostep(tmp_path):
+    """eventMode="false" on a component's mm:Component: instantiated without, the clock handles its
+    events inside doStep and a latches its input at its step events (FMI 2's behaviour, one step
+    late); the other latch keeps event mode. An FMU without Event Mode cannot be asked
+    for it: one line naming the file and the component's settings."""
+    import shutil
+
+    for name in ("stair", "latch"):
+        shutil.copy(fmu3(name), tmp_path / f"{name}.fmu")
+    comps = {"clock": "stair.fmu", "a": "latch.fmu", "b": "latch.fmu"}
+    links = [("clock", "counter", "a", "u"), ("a", "latched", "b", "u")]
+    settings = '<mm:Component name="clock" eventMode="false"/><mm:Component name="a" eventMode="false"/>'
+    path = ssd(tmp_path / "net.ssd", comps, links, settings, stop="3")
+    sc = api.load_scenario(path)
+    assert [c.event_mode for c in sc.components] == [False, False, True]
+    d = run_everywhere(sc)
+    # a latches at its step events, at the ends of the steps into which the counter changed; b, in
+    # event mode, at once where it takes a's sample of that time
+    assert np.allclose(latch_times(d, "a"), [1.1, 2.1], rtol=0, atol=1e-12)
+    assert np.allclose(latch_times(d, "b"), [1.1, 2.1], rtol=0, atol=1e-12)
+    on = api.run(api.load_scenario(ssd(tmp_path / "on.ssd", comps, links, stop="3"))).data
+    assert latch_times(on, "a") == [1.0, 2.0]  # in event mode: an input event at the counter's sample of k
+    shutil.copy(fmu_path("latch"), tmp_path / "latch2.fmu")  # FMI 2.0: no Event Mode
+    bad = ssd(
+        tmp_path / "bad.ssd",
+        {"clock": "stair.fmu", "a": "latch2.fmu"},
+        links[:1],
+        '<mm:Component name="a" eventMode="true"/>',
+    )
+    with pytest.raises(ScenarioError) as e:
+        api.load_scenario(bad)
+    line = 'bad.ssd:16: mm:Component "a": eventMode: latch2.fmu has no FMI 3 Co-Simulation Event Mode'
+    assert str(e.value).endswith(line + " (hasEventMode)")
+    assert "\n" not in str(e.value)

@@ -104,7 +104,8 @@ def samples_read(plan: Plan, name: str) -> list[bool]:
 
 def open_fmu(sc: Scenario, comp: Component) -> Fmu:
     """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode."""
-    fmu = Fmu(comp.fmu_path, comp.name, model_exchange=comp.model_exchange is not None)
+    me = comp.model_exchange is not None
+    fmu = Fmu(comp.fmu_path, comp.name, model_exchange=me, event_mode=comp.event_mode)
     try:
         fmu.set_values(dict(comp.parameters))
         fmu.enter_initialization(float(sc.start_time), float(sc.stop_time))

@@ -29,6 +29,9 @@ class Component:
     # run as a Model Exchange FMU that the master integrates (None: Co-Simulation, unless the FMU has
     # no Co-Simulation interface: then ModelExchange())
     model_exchange: ModelExchange | None = None
+    # an FMI 3 Co-Simulation FMU with Event Mode (hasEventMode) is instantiated with eventModeUsed and
+    # early return allowed (False: without, its events handled inside its doStep)
+    event_mode: bool = True
 
 
 @dataclass(frozen=True)

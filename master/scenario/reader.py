@@ -192,6 +192,7 @@ def _read(
             interpolate_inputs=setup.interpolate_inputs[c.name],
             group=setup.group.get(c.name),
             model_exchange=setup.model_exchange.get(c.name),
+            event_mode=setup.event_mode.get(c.name, True),
         )
         for c in ctx.comps.values()
         if c.info is not None
