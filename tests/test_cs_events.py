@@ -11,6 +11,7 @@ simulation of the same FMU; a network of stair and two latches passing an Int32 
 from __future__ import annotations
 
 import math
+import shutil
 from fractions import Fraction
 from pathlib import Path
 
@@ -189,8 +190,6 @@ def test_event_mode_off_for_a_component_handles_its_events_inside_dostep(tmp_pat
     events inside doStep and a latches its input at its step events (FMI 2's behaviour, one step
     late); the other latch keeps event mode. An FMU without Event Mode cannot be asked
     for it: one line naming the file and the component's settings."""
-    import shutil
-
     for name in ("stair", "latch"):
         shutil.copy(fmu3(name), tmp_path / f"{name}.fmu")
     comps = {"clock": "stair.fmu", "a": "latch.fmu", "b": "latch.fmu"}
