@@ -48,6 +48,9 @@ static void emit(const Instance *inst, LayerStatus status, const char *category,
     ((fmi3LogMessageCallback)inst->logger)(inst->env, (fmi3Status)status, category, message);
 }
 
+/* Why a Co-Simulation instance refuses the calls of Event Mode. */
+#define NO_EVENT_MODE "the FMU has no Event Mode or was instantiated without eventModeUsed"
+
 static fmi3Status unsupported(Instance *inst, const char *function, const char *why) {
     if (inst) layer_log(inst, LOG_ERROR, "%s: not supported (%s)", function, why);
     return fmi3Error;
@@ -161,7 +164,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     GUARD("fmi3EnterEventMode", ANY_STATE);
     if (inst->kind == KIND_CO_SIMULATION && !inst->event_mode_used)
-        return unsupported(inst, "fmi3EnterEventMode", "instantiated without eventModeUsed, or no Event Mode");
+        return unsupported(inst, "fmi3EnterEventMode", NO_EVENT_MODE);
     if (!check_state(inst, "fmi3EnterEventMode", inst->kind == KIND_CO_SIMULATION ? S_STEP : S_EVENT | S_CONT))
         return fmi3Error;
     inst->core->state = ST_EVENT;
@@ -524,7 +527,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Float64 *nextEventTime) {
     GUARD("fmi3UpdateDiscreteStates", ANY_STATE);
     if (inst->kind == KIND_CO_SIMULATION && !inst->event_mode_used)
-        return unsupported(inst, "fmi3UpdateDiscreteStates", "instantiated without eventModeUsed, or no Event Mode");
+        return unsupported(inst, "fmi3UpdateDiscreteStates", NO_EVENT_MODE);
     if (!check_state(inst, "fmi3UpdateDiscreteStates", S_EVENT)) return fmi3Error;
     int needed = 0, changed = 0, terminate = 0;
     if (event_update(inst, "fmi3UpdateDiscreteStates", &needed, &changed, &terminate)) {
@@ -666,8 +669,8 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nConti
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     GUARD("fmi3EnterStepMode", ANY_STATE);
     if (inst->kind != KIND_CO_SIMULATION || !inst->event_mode_used)
-        return unsupported(inst, "fmi3EnterStepMode", "instantiated without eventModeUsed, or no Event Mode: it is "
-                                                      "in Step Mode after fmi3ExitInitializationMode");
+        return unsupported(inst, "fmi3EnterStepMode",
+                           NO_EVENT_MODE ": it is in Step Mode after fmi3ExitInitializationMode");
     if (!check_state(inst, "fmi3EnterStepMode", S_EVENT)) return fmi3Error;
     inst->core->state = ST_STEP_COMPLETE;
     inst->core->event_pending = 0;

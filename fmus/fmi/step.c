@@ -118,7 +118,8 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
     }
     /* the rest of a step returned early from (FMI 3.0 event mode): on that step's grid, to its end (t + H
      * but for the rounding of the importer's H = end - t) */
-    const int resume = c->grid_steps > 0 && t > c->grid_t0 && fabs(t + H - c->grid_t1) <= 1e-9 * (c->grid_t1 - c->grid_t0);
+    const int resume =
+        c->grid_steps > 0 && t > c->grid_t0 && fabs(t + H - c->grid_t1) <= 1e-9 * (c->grid_t1 - c->grid_t0);
     double t0 = t, t1 = t + H, reached = t1;
     if (resume) {
         steps = c->grid_steps, h = c->grid_h, t0 = c->grid_t0, t1 = c->grid_t1;
