@@ -716,6 +716,10 @@ static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t
 
 /* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
  * then the stimuli. */
+/* When a held input's sample in a step is of, for a component in FMI 3 event mode (mk_component.cs_late):
+ * the step's start or earlier, a time in the step, a later one. */
+enum { CS_AT_START = 0, CS_IN_STEP = 1, CS_AFTER_STEP = 2 };
+
 static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
     const int32_t kc = c->step_ratio, nb = c->n_blocks, n_in = c->n_in;
     for (int32_t l = 0; l < c->n_links; l++) {
@@ -748,6 +752,12 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
             }
         }
         if (lk->transform) transform_inputs(c, lk);
+        for (int32_t m = 0; c->cs_events && m < kc; m++) { /* the time of a held input's sample, s ks / H */
+            const int64_t s = (base + off[m]) * kc, j = n * kc + m;
+            const uint8_t when = s <= j * lk->k_source ? CS_AT_START : s <= (j + 1) * lk->k_source ? CS_IN_STEP
+                                                                                                 : CS_AFTER_STEP;
+            for (int32_t i = 0; i < lk->n_cols; i++) c->cs_late[(size_t)m * n_in + lk->slot0 + i] = when;
+        }
     }
     /* String and Binary links: the held sample of each step, copied (the source may overwrite its
      * slot once this component has taken its inputs, before the step sets them) */
@@ -1084,25 +1094,34 @@ static bool discrete_input(const mk_component *c, int32_t i) {
     return i >= c->n_in_real && (i < typed || c->in_kinds[i - typed] != MK_FLOAT32);
 }
 
-/* Whether a discrete input of u whose sample is of the step's start (at_end 0) or of its end (at_end 1:
- * its source goes first) differs from the value last set. */
-static bool discrete_changed(const mk_component *c, const double *u, int at_end) {
-    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
-        if (discrete_input(c, i) && c->cs_at_end[d++] == at_end && u[i] != c->cs_held[d - 1]) return true;
+/* Whether a discrete input of step m's inputs u whose sample is of time `when` (CS_*) differs from the
+ * value last set. */
+static bool discrete_changed(const mk_component *c, const double *u, int32_t m, uint8_t when) {
+    const uint8_t *late = c->cs_late + (size_t)m * c->n_in;
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        if (late[i] == when && u[i] != c->cs_held[d]) return true;
+        d++;
+    }
     return false;
-}
-
-/* u with the discrete inputs whose sample is of the step's end as last set (into c->scratch). */
-static const double *held_at_end(mk_component *c, const double *u) {
-    memcpy(c->scratch, u, sizeof(double) * (size_t)c->n_in);
-    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
-        if (discrete_input(c, i) && c->cs_at_end[d++]) c->scratch[i] = c->cs_held[d - 1];
-    return c->scratch;
 }
 
 static void hold_discrete(mk_component *c, const double *u) {
     for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
         if (discrete_input(c, i)) c->cs_held[d++] = u[i];
+}
+
+/* Step m's inputs u (a block of them) with the discrete ones whose sample is of time `from` (CS_*) or
+ * later as last set, into c->scratch. */
+static const double *held_from(mk_component *c, const double *u, int32_t m, uint8_t from) {
+    const uint8_t *late = c->cs_late + (size_t)m * c->n_in;
+    memcpy(c->scratch, u, sizeof(double) * (size_t)c->n_in);
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        if (late[i] >= from) c->scratch[i] = c->cs_held[d];
+        d++;
+    }
+    return c->scratch;
 }
 
 /* The event iteration of an FMI 3 Co-Simulation FMU at its current time (point j's step): event mode,
@@ -1168,10 +1187,11 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int64_t t0 = now_ns();
         int32_t call = 0;
         /* FMI 3 event mode: a discrete input that changed is an input event, at t where its sample is of
-         * t, at t + h (after the step, which takes it as it was) where it is of t + h */
-        const bool later = c->cs_events && n_in && discrete_changed(c, u, 1);
-        const double *now = later ? held_at_end(c, u) : u;
-        if (c->cs_events && n_in && discrete_changed(c, u, 0)) {
+         * t or earlier, at t + h (after the step, which takes it as it was) where it is of a time in the
+         * step, at a later point where it is of a later time */
+        const bool later = c->cs_events && n_in && discrete_changed(c, u, m, CS_IN_STEP);
+        const double *now = c->cs_events && n_in ? held_from(c, u, m, CS_IN_STEP) : u;
+        if (c->cs_events && n_in && discrete_changed(c, u, m, CS_AT_START)) {
             if ((st = cs_event(k, ci, now, j, &terminate)) != MK_DONE) return st;
         } else if (n_in && (st = set_inputs(c, now, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
@@ -1189,14 +1209,17 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
         } else if (c->cs_events) {
             if ((st = cs_step(k, ci, t, j, final, &terminate)) != MK_DONE) return st;
-            if (later && !terminate && (st = cs_event(k, ci, u, j, &terminate)) != MK_DONE) return st;
+            const double *at_end = held_from(c, u, m, CS_AFTER_STEP); /* the input event at t + h */
+            if (later && !terminate && (st = cs_event(k, ci, at_end, j, &terminate)) != MK_DONE) return st;
         } else if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
             request_stop(k, ci, j - 1, n);
             return MK_STOPPED;
         }
-        if (c->feedthrough && (st = set_inputs(c, u + n_in, &call)) > STATUS_OK)
+        /* the step-end inputs, in step mode: the discrete ones of an FMU in event mode as they were set */
+        const double *step_end = c->cs_events ? held_from(c, u + n_in, m, CS_AT_START) : u + n_in;
+        if (c->feedthrough && (st = set_inputs(c, step_end, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;

@@ -308,15 +308,16 @@ typedef struct {
      * an early return, steps on from that time to the step's end, the inputs held: the component's
      * communication points stay the schedule's. A discrete input (any kind but Real and Float32) that
      * changes is set in event mode with an event iteration (an input event) at the time of the sample
-     * that brings the change: at the step's start, or, where its source goes first (cs_at_end: the
-     * step's inputs are samples of its end), after the step, which takes the value as it was. A
-     * discrete signal thus passes from an event of its source to its consumers at their first point
-     * where they see the new sample. cs_held: the n_cs_held discrete inputs as last set (saved with
-     * the FMU state in start-up: cs_held_saved); events are counted in *me_event_count. */
+     * that brings the change: at the step's start where that sample is of its start or earlier, else
+     * (a source that goes first, a relaxed sweep: a sample of a later time; cs_late, written with the
+     * inputs) after the step, which takes the value as it was. A discrete signal thus passes from an
+     * event of its source to its consumers at their first point where they see the new sample.
+     * cs_held: the n_cs_held discrete inputs as last set (saved with the FMU state in start-up:
+     * cs_held_saved); events are counted in *me_event_count. */
     int32_t cs_events;
     mk_function enter_step_mode;
     int32_t n_cs_held;
-    const uint8_t *cs_at_end; /* [n_cs_held] */
+    uint8_t *cs_late; /* [step_ratio][n_in]: 1 where a held input's sample of step m is of a later time */
     double *cs_held;
     double *cs_held_saved;
 } mk_component;

@@ -314,7 +314,7 @@ class Component(C.Structure):
         ("cs_events", _i32),
         ("enter_step_mode", _p),
         ("n_cs_held", _i32),
-        ("cs_at_end", C.POINTER(C.c_uint8)),
+        ("cs_late", C.POINTER(C.c_uint8)),
         ("cs_held", C.POINTER(C.c_double)),
         ("cs_held_saved", C.POINTER(C.c_double)),
     ]

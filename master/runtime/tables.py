@@ -447,23 +447,18 @@ class CompiledPlan:
         if fmu.model_exchange:
             self._model_exchange(c, pc, fmu, in_names)
         if fmu.event_mode:
-            ahead = {i for lk in links if lk.source_first for i in lk.inputs}
-            self._event_mode(c, pc, fmu, list(zip(in_names, in_kinds, strict=True)), ahead)
+            self._event_mode(c, pc, fmu, in_kinds)
 
-    def _event_mode(
-        self, c: native.Component, pc: PlanComponent, fmu: Fmu, inputs: list[tuple[str, str]], ahead: set[str]
-    ) -> None:
+    def _event_mode(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_kinds: list[str]) -> None:
         """An FMI 3 Co-Simulation component in event mode (kernel.h: mk_component.cs_events): its
-        discrete inputs as last set, which of them its sources' step-end samples drive (`ahead`),
+        discrete inputs as last set, whether each step's held inputs are samples of a later time,
         events counted beside its steps."""
         _require(fmu, "enter_event_mode", pc.name)
         _require(fmu, "update_discrete_states", pc.name)
         _require(fmu, "enter_step_mode", pc.name)
         c.cs_events = 1
-        discrete = [name for name, kind in inputs if kind not in ("Real", "Float32")]
-        c.n_cs_held = held = len(discrete)
-        at_end = [name in ahead for name in discrete] or [False]
-        c.cs_at_end = _ptr(self._array(at_end, np.uint8), C.c_uint8)
+        c.n_cs_held = held = sum(kind not in ("Real", "Float32") for kind in in_kinds)
+        c.cs_late = _ptr(self._array(np.zeros((c.step_ratio, max(len(in_kinds), 1))), np.uint8), C.c_uint8)
         c.cs_held = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.cs_held_saved = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
