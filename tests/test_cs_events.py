@@ -22,6 +22,7 @@ import pytest
 from helpers import run_everywhere, ssd
 
 import master.api as api
+from master.backends.component import SimulationError
 from master.fmubuild import build_fmu, fmu_path
 from master.scenario import ScenarioError
 from master.scenario.model import Component, Connection, Iteration, Scenario, Scheme
@@ -229,3 +230,42 @@ def test_event_mode_off_for_a_component_handles_its_events_inside_dostep(tmp_pat
     line = 'bad.ssd:16: mm:Component "a": eventMode: latch2.fmu has no FMI 3 Co-Simulation Event Mode'
     assert str(e.value).endswith(line + " (hasEventMode)")
     assert "\n" not in str(e.value)
+
+
+def cycle(limit: int, iteration: Iteration | None) -> Scenario:
+    """Two latches in a discrete cycle: a takes b's next = min(b.latched + 1, limit), b takes a's latched."""
+    comps = (
+        Component("a", fmu3("latch")),
+        Component("b", fmu3("latch"), parameters={"increment": 1, "limit": limit}),
+    )
+    conns = (Connection("b", "next", "a", "u"), Connection("a", "latched", "b", "u"))
+    return Scenario(
+        Path("cycle.ssd"),
+        "cycle",
+        comps,
+        conns,
+        Fraction(0),
+        Fraction(1),
+        Fraction(1, 10),
+        iteration=iteration,
+    )
+
+
+def test_a_discrete_cycle_is_iterated_to_its_fixed_point_in_one_macro_step():
+    """Explicit coupling passes the count once around the cycle per two macro steps (Jacobi: one
+    step per connection). Iterated macro steps repeat the first one, each sweep an event iteration
+    of both with the other's new value, until nothing changes: a and b hold the limit from the
+    first macro step's end on, in every backend; a cycle that never settles (a limit beyond the
+    sweeps) stops the run with one line."""
+    explicit = run_everywhere(cycle(5, None))
+    assert explicit["a.latched"].tolist() == [1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 5]
+    d = run_everywhere(cycle(5, Iteration()))
+    assert d["a.latched"].tolist() == d["b.next"].tolist() == [1] + [5] * 10
+    assert d["b.latched"][1:].tolist() == [5] * 10
+    with pytest.raises(SimulationError) as e:
+        api.run(cycle(100, Iteration()))
+    assert str(e.value) == (
+        "iterated coupling did not converge in the macro step from t=0.0 to t=0.1: after 20 sweeps b.next "
+        "still changed by 1 (tolerance 1e-08 (1 + |value|)); raise maxIterations of mm:Iteration or shorten "
+        "the macro step"
+    )
