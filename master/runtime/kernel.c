@@ -966,6 +966,7 @@ static int me_step_done(void *ctx, double t, const double *x, int *event, int *s
 }
 
 #define MK_EVENT_ROUNDS 1000 /* an event iteration longer than this never ends (MK_EVENT) */
+#define MK_EARLY_RETURNS 1000000 /* FMI 3 event mode: early returns in one communication step (MK_EVENT) */
 #define MK_NEVER_ENDS (-1)   /* me_context.status of such an iteration */
 
 /* The event iteration of an FMU in event mode (new discrete states until none are needed, or the FMU
@@ -1151,9 +1152,9 @@ static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, in
 }
 
 /* fmi3DoStep of an FMU in event mode from point j (time t) to t + h: at an event it reports, the event
- * iteration at once (its outputs at t + h are those after the event); where it returned early there
- * (a time, state or step event inside the step), the rest of the step after it, its inputs held, so
- * that its communication points stay those of the schedule. *terminate: 1 when it ends the simulation. */
+ * iteration at once (its outputs at t + h are those after the event); where it returned early (a time,
+ * state or step event inside the step), the rest of the step after it, its inputs held, so that its
+ * communication points stay those of the schedule. *terminate: 1 when it ends the simulation. */
 static int32_t cs_step(mk_kernel *k, int32_t ci, double t, int64_t j, bool final, int *terminate) {
     mk_component *c = &k->components[ci];
     const double end = t + c->h;
@@ -1161,16 +1162,15 @@ static int32_t cs_step(mk_kernel *k, int32_t ci, double t, int64_t j, bool final
     for (int64_t events = 0;; events++) {
         bool event = false, early = false, stop = false;
         double last = end;
-        if (events > MK_EVENT_ROUNDS * 1000) /* events without end inside one step (a Zeno point) */
+        if (events == MK_EARLY_RETURNS) /* events without end inside one step (a Zeno point) */
             return fail(k, MK_EVENT, ci, MK_CALL_DO_STEP, 0, j);
         const double size = events ? end - from : c->h; /* (the FMU ends the rest at its step's end) */
         int st = ((fmi3_do_step *)c->do_step)(c->instance, from, size, final, &event, &stop, &early, &last);
         if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
         if (stop) return *terminate = 1, MK_DONE;
-        if (!event) return MK_DONE;
-        int32_t code = cs_event(k, ci, NULL, j, terminate);
+        int32_t code = event ? cs_event(k, ci, NULL, j, terminate) : MK_DONE;
         if (code != MK_DONE || *terminate || !early || !(last < end)) return code;
-        from = last;
+        from = last; /* returned early (at an event, or as the importer asked): the rest of the step */
     }
 }
 

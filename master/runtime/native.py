@@ -51,6 +51,7 @@ INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for Solver
     NOT_SETTLED,  # iterated macro steps: the sweeps did not settle (kernel.h)
 ) = range(13)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
+EARLY_RETURNS = 1_000_000  # FMI 3 event mode: most early returns in a communication step (MK_EARLY_RETURNS)
 CALLS = (
     "set_real",
     "set_derivatives",

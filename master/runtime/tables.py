@@ -850,6 +850,9 @@ class CompiledPlan:
             )
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
+        if e.code == native.EVENT and call == "do_step":  # kernel.c cs_step
+            why = f"returns early from fmi3DoStep without end ({native.EARLY_RETURNS} times)"
+            return SimulationError(f"{name}: {why} {step}", name, t)
         if e.code == native.EVENT:
             new = FMI_FUNCTIONS["update_discrete_states"][fmu.fmi - 1]
             return SimulationError(
