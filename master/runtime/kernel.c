@@ -1781,7 +1781,11 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     int st;
     int64_t t0 = now_ns();
     int32_t call = 0;
-    if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    int terminate = 0;
+    if (c->cs_stepping && c->n_in && discrete_changed(c, u, 0, CS_AT_START)) { /* an input event at the start */
+        if ((st = cs_event(k, ci, u, 0, &terminate)) != MK_DONE) return st;
+    } else if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, call, st, 0);
     if (c->cs_events) hold_discrete(c, u);
     for (int32_t l = 0; l < c->n_string_links; l++) {
         const mk_link *lk = &c->string_links[l];

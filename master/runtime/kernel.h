@@ -316,6 +316,8 @@ typedef struct {
      * cs_held_saved); events are counted in *me_event_count. */
     int32_t cs_events;
     mk_function enter_step_mode;
+    int32_t cs_stepping; /* 1 once out of initialisation mode: the start time's sweeps after it set a
+                            changed discrete input through an input event too */
     int32_t n_cs_held;
     uint8_t *cs_late; /* [step_ratio][n_in]: 1 where a held input's sample of step m is of a later time */
     double *cs_held;

@@ -314,6 +314,7 @@ class Component(C.Structure):
         ("me_input_events", _i32),
         ("cs_events", _i32),
         ("enter_step_mode", _p),
+        ("cs_stepping", _i32),
         ("n_cs_held", _i32),
         ("cs_late", C.POINTER(C.c_uint8)),
         ("cs_held", C.POINTER(C.c_double)),

@@ -708,6 +708,8 @@ class CompiledPlan:
         except FmuError as e:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
+        if fmu.event_mode:  # in step mode: its discrete inputs change in event mode from now on (kernel.h)
+            self.components[self.names.index(name)].cs_stepping = 1
         if fmu.model_exchange:  # the time event its initial event iteration asked for
             c = self.components[self.names.index(name)]
             c.me_next_event = fmu.next_event_time
