@@ -714,12 +714,12 @@ static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t
     }
 }
 
-/* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
- * then the stimuli. */
 /* When a held input's sample in a step is of, for a component in FMI 3 event mode (mk_component.cs_late):
  * the step's start or earlier, a time in the step, a later one. */
 enum { CS_AT_START = 0, CS_IN_STEP = 1, CS_AFTER_STEP = 2 };
 
+/* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
+ * then the stimuli; for a component in FMI 3 event mode the time of each held input's sample. */
 static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
     const int32_t kc = c->step_ratio, nb = c->n_blocks, n_in = c->n_in;
     for (int32_t l = 0; l < c->n_links; l++) {
