@@ -104,6 +104,8 @@ FMI_FUNCTIONS = {
     "enter_event_mode": (None, "fmi2EnterEventMode", "fmi3EnterEventMode"),
     "update_discrete_states": (None, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
     "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
+    # FMI 3 Co-Simulation with Event Mode (kernel.h: mk_component.cs_events)
+    "enter_step_mode": (None, None, "fmi3EnterStepMode"),
 }
 
 
@@ -263,6 +265,7 @@ class Capability:
     completed_integrator_step: bool = False  # Model Exchange: needsCompletedIntegratorStep
     scheduled: bool = False  # the Scheduled Execution interface (master.clocks)
     clocks: tuple[ClockVariable, ...] = ()  # Scheduled Execution: its Clock variables
+    event_mode: bool = False  # FMI 3 Co-Simulation: hasEventMode
 
     def depends(self, output: str, inputs: dict[str, Variable]) -> frozenset[str]:
         """The inputs `output` depends on directly (no table: all of `inputs`)."""
@@ -326,6 +329,7 @@ def interfaces(md: ModelDescription, path: Path | None = None) -> dict[str, Capa
             event_indicators=int(md.numberOfEventIndicators or 0) if name == MODEL_EXCHANGE else 0,
             model_identifier=kind.modelIdentifier or "",
             completed_integrator_step=name == MODEL_EXCHANGE and bool(kind.needsCompletedIntegratorStep),
+            event_mode=name == CO_SIMULATION and uses_event_mode(md),
         )
     return out
 
@@ -461,6 +465,13 @@ def runs_as_scheduled(md: ModelDescription, asked: bool = False) -> bool:
     """Whether the master runs an FMU of description `md` as a Scheduled Execution component
     (master.clocks): asked for (SSP implementation="ScheduledExecution"), or its only interface."""
     return scheduled(md) and (asked or (md.coSimulation is None and md.modelExchange is None))
+
+
+def uses_event_mode(md: ModelDescription, model_exchange: bool = False) -> bool:
+    """Whether the master runs an FMU of description `md` in FMI 3 Co-Simulation with Event Mode
+    (eventModeUsed, early return allowed): it declares hasEventMode and runs as Co-Simulation."""
+    cs = md.coSimulation
+    return md.fmiVersion.startswith("3") and not model_exchange and cs is not None and bool(cs.hasEventMode)
 
 
 # -- reading modelDescription.xml -------------------------------------------------------------------

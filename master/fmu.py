@@ -34,6 +34,7 @@ from master.description import (
     runs_as_scheduled,
     typed,
     unsupported,
+    uses_event_mode,
     variables_of,
 )
 
@@ -207,6 +208,7 @@ class Fmu:
         model_exchange: bool = False,
         intermediate_update: bool = False,
         scheduled: bool = False,
+        event_mode: bool = True,
     ):
         self.path = Path(path)
         self.name = instance_name
@@ -219,6 +221,9 @@ class Fmu:
         if self.model_exchange and (self.md.modelExchange is None or self.fmi == 1):
             raise FmuError(f"{instance_name}: {self.path.name} has no Model Exchange 2.0 or 3.0 interface")
         self.fmi3 = self.fmi == 3
+        # FMI 3 Co-Simulation with Event Mode (hasEventMode): instantiated with eventModeUsed and early
+        # return allowed; the kernel handles its events (kernel.h mk_component.cs_events)
+        self.event_mode = event_mode and not self.scheduled and uses_event_mode(self.md, self.model_exchange)
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
@@ -259,6 +264,8 @@ class Fmu:
                 self.slave = (FMU3Model if self.model_exchange else interface)(**kw)
                 if self._ask:
                     self._instantiate_intermediate()
+                elif self.event_mode:
+                    self.slave.instantiate(logMessage=self._log3, eventModeUsed=True, earlyReturnAllowed=True)
                 else:
                     self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
@@ -313,8 +320,8 @@ class Fmu:
             resources.encode("utf-8"),
             False,
             False,
-            False,
-            False,
+            self.event_mode,  # eventModeUsed
+            self.event_mode,  # earlyReturnAllowed
             (fmi3ValueReference * 0)(),
             0,
             ctypes.addressof(self.intermediate),
@@ -572,12 +579,19 @@ class Fmu:
             self.slave.exitInitializationMode()
             if self.model_exchange:
                 self._continuous_time()
+            elif self.event_mode:  # in Event Mode after initialisation
+                self._discrete_states()
+                self.slave.enterStepMode()
         except FMICallException as e:
             raise FmuError(self.describe(f"initialisation failed: {e}")) from e
 
     def _continuous_time(self) -> None:
-        """A Model Exchange FMU after initialisation: the event iteration (new discrete states until
-        none are needed), then continuous-time mode."""
+        """A Model Exchange FMU after initialisation: the event iteration, then continuous-time mode."""
+        self._discrete_states()
+        self.slave.enterContinuousTimeMode()
+
+    def _discrete_states(self) -> None:
+        """The event iteration after initialisation: new discrete states until none are needed."""
         for _ in range(1000):
             if self.fmi3:
                 needed, terminate, *_, timed, when = self.slave.updateDiscreteStates()
@@ -590,7 +604,6 @@ class Fmu:
                 break
         else:
             raise FmuError(self.describe("its event iteration after initialisation never ends (1000 rounds)"))
-        self.slave.enterContinuousTimeMode()
 
     def get_state(self) -> object:
         """A saved copy of the FMU state (canGetAndSetFMUstate); free it with `free_state`."""

@@ -718,6 +718,11 @@ def _default_experiment(root: etree._Element, desc: dict) -> None:
         etree.SubElement(root, "DefaultExperiment", stepSize=repr(float(desc["default_step_size"])))
 
 
+def _has_events(desc: dict) -> bool:
+    """Whether a model has events: indicators, an event update or step events (fmi/event.c)."""
+    return bool(desc["n_event_indicators"] or desc["has_update"] or desc["has_step_event"])
+
+
 def _unit_definitions(root: etree._Element, units: set[str]) -> None:
     """UnitDefinitions (with SI base units where known) of the units used (the same in FMI 2.0 and 3.0)."""
     if units:
@@ -812,7 +817,8 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             canHandleVariableCommunicationStepSize="true",
             providesIntermediateUpdate="true" if intermediate else "false",
             canReturnEarlyAfterIntermediateUpdate="false",
-            hasEventMode="false",
+            # Event Mode for a model with events (fmi3.c: doStep stops at them where eventModeUsed)
+            hasEventMode="true" if _has_events(desc) else "false",
         )
     _unit_definitions(root, {v["unit"] for v in variables if v["unit"]} | {"s"})
     if any(v["type"] == "Solver" for v in variables):

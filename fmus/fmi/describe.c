@@ -82,7 +82,8 @@ int main(void) {
            m->initialize ? "true" : "false", m->jacobian ? "true" : "false", m->outputs ? "true" : "false");
     printf("\"n_event_indicators\": %d, \"event_indicator_vrs\": ", m->n_event_indicators);
     json_ints(m->event_indicator_vrs, m->event_indicator_vrs ? m->n_event_indicators : 0);
-    printf(", \"has_step_event\": %s,\n", m->step_event ? "true" : "false");
+    printf(", \"has_step_event\": %s, \"has_update\": %s,\n", m->step_event ? "true" : "false",
+           m->update ? "true" : "false");
     static const char *const clock_variabilities[] = {"constant", "fixed",     "tunable",
                                                       "changing", "countdown", "triggered"};
     printf("\"has_activate\": %s, \"clocks\": [", m->activate ? "true" : "false");

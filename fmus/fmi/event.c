@@ -8,6 +8,8 @@
 
 #define MAX_EVENT_ROUNDS 100 /* an event iteration that goes on longer is the model's error */
 
+int model_has_events(const ModelDef *m) { return m->n_event_indicators > 0 || m->update || m->step_event; }
+
 int event_update(Instance *inst, const char *function, int *needed, int *states_changed, int *terminate) {
     const ModelDef *m = inst->model;
     Core *c = inst->core;

@@ -10,8 +10,17 @@
  *     list it);
  *   - fmi3EnterInitializationMode takes the experiment's start and stop time;
  *   - fmi3DoStep: when the model ends the simulation (MODEL_TERMINATE) the step completes
- *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
- *     needs no event handling;
+ *     and returns fmi3OK with *terminateSimulation = fmi3True;
+ *   - Event Mode of Co-Simulation (hasEventMode="true" for a model with events): instantiated with
+ *     eventModeUsed, the instance is in Event Mode after fmi3ExitInitializationMode, and doStep stops
+ *     at an event (time, state or step event) before handling it: *eventHandlingNeeded, the time and
+ *     states those at the event, its outputs those before it.  With earlyReturnAllowed it stops at
+ *     the first event (*earlyReturn where that is before the step's end, *lastSuccessfulTime the
+ *     event's time); without, events inside the step are handled there as without event mode and
+ *     only one at the step's end is left.  The importer then calls fmi3EnterEventMode,
+ *     fmi3UpdateDiscreteStates (the model's event update) until no update is needed, and
+ *     fmi3EnterStepMode; a doStep from the time it returned early at to the step's end goes on with
+ *     the step's grid of internal steps;
  *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply;
  *   - intermediate update (providesIntermediateUpdate where the model has continuous Float64
  *     inputs, declared intermediateUpdate="true"): given the callback, doStep asks the importer for
@@ -23,9 +32,9 @@
  *   - Scheduled Execution for a model with clocks (clocks.c): fmi3ActivateModelPartition,
  *     fmi3GetClock of output clocks, fmi3GetIntervalDecimal; its Clock Activation Mode is Step Mode.
  * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
- * Event Mode of Co-Simulation, fmi3SetClock and the other interval and shift calls, Configuration
- * Mode, intermediate variables to get, output derivatives, adjoint derivatives, variable dependency
- * queries.
+ * fmi3SetClock and the other interval and shift calls, Configuration Mode, early return after an
+ * intermediate update, intermediate variables to get, output derivatives, adjoint derivatives,
+ * variable dependency queries.
  */
 #include <stdio.h>
 #include <string.h>
@@ -44,6 +53,9 @@ typedef char value_reference_is_unsigned_int[sizeof(fmi3ValueReference) == sizeo
 static void emit(const Instance *inst, LayerStatus status, const char *category, const char *message) {
     ((fmi3LogMessageCallback)inst->logger)(inst->env, (fmi3Status)status, category, message);
 }
+
+/* Why a Co-Simulation instance refuses the calls of Event Mode. */
+#define NO_EVENT_MODE "the FMU has no Event Mode or was instantiated without eventModeUsed"
 
 static fmi3Status unsupported(Instance *inst, const char *function, const char *why) {
     if (inst) layer_log(inst, LOG_ERROR, "%s: not supported (%s)", function, why);
@@ -89,9 +101,9 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     const char *name = instanceName ? instanceName : "";
     char message[512];
     Instance *inst;
-    /* No Event Mode (hasEventMode="false"): eventModeUsed changes nothing; the FMU never
-     * returns early and offers no intermediate variables. */
-    (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
+    /* A model without events has no Event Mode (hasEventMode="false"): eventModeUsed changes nothing
+     * there.  No intermediate variables are offered. */
+    (void)resourcePath, (void)visible;
     (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables;
     if (MODEL.me_only || MODEL.n_clocks) { /* its description has no CoSimulation */
         snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers %s only", MODEL.identifier,
@@ -113,6 +125,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     if (inst && intermediateUpdate && has_intermediate_inputs()) {
         inst->callback = (void (*)(void))intermediateUpdate;
         inst->ask_inputs = ask_intermediate_inputs;
+    }
+    if (inst && eventModeUsed && model_has_events(inst->model)) {
+        inst->event_mode_used = 1;
+        inst->early_return_allowed = earlyReturnAllowed != 0;
     }
     return inst;
 }
@@ -189,13 +205,17 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     GUARD("fmi3ExitInitializationMode", S_INIT);
-    return (fmi3Status)exit_initialization(inst, "fmi3ExitInitializationMode");
+    LayerStatus status = exit_initialization(inst, "fmi3ExitInitializationMode");
+    if (status <= LAYER_WARNING && inst->event_mode_used) inst->core->state = ST_EVENT; /* Co-Simulation's too */
+    return (fmi3Status)status;
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     GUARD("fmi3EnterEventMode", ANY_STATE);
-    if (inst->kind == KIND_CO_SIMULATION) return unsupported(inst, "fmi3EnterEventMode", "the FMU has no Event Mode");
-    if (!check_state(inst, "fmi3EnterEventMode", S_EVENT | S_CONT)) return fmi3Error;
+    if (inst->kind == KIND_CO_SIMULATION && !inst->event_mode_used)
+        return unsupported(inst, "fmi3EnterEventMode", NO_EVENT_MODE);
+    if (!check_state(inst, "fmi3EnterEventMode", inst->kind == KIND_CO_SIMULATION ? S_STEP : S_EVENT | S_CONT))
+        return fmi3Error;
     inst->core->state = ST_EVENT;
     return fmi3OK;
 }
@@ -567,8 +587,8 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
     GUARD("fmi3UpdateDiscreteStates", ANY_STATE);
-    if (inst->kind == KIND_CO_SIMULATION)
-        return unsupported(inst, "fmi3UpdateDiscreteStates", "the FMU has no Event Mode");
+    if (inst->kind == KIND_CO_SIMULATION && !inst->event_mode_used)
+        return unsupported(inst, "fmi3UpdateDiscreteStates", NO_EVENT_MODE);
     if (!check_state(inst, "fmi3UpdateDiscreteStates", S_EVENT)) return fmi3Error;
     int needed = 0, changed = 0, terminate = 0;
     if (event_update(inst, "fmi3UpdateDiscreteStates", &needed, &changed, &terminate)) {
@@ -709,8 +729,14 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nConti
 
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     GUARD("fmi3EnterStepMode", ANY_STATE);
-    return unsupported(inst, "fmi3EnterStepMode", "the FMU has no Event Mode: it is in Step Mode after "
-                                                  "fmi3ExitInitializationMode");
+    if (inst->kind != KIND_CO_SIMULATION || !inst->event_mode_used)
+        return unsupported(inst, "fmi3EnterStepMode",
+                           NO_EVENT_MODE ": it is in Step Mode after fmi3ExitInitializationMode");
+    if (!check_state(inst, "fmi3EnterStepMode", S_EVENT)) return fmi3Error;
+    inst->core->state = ST_STEP_COMPLETE;
+    inst->core->event_pending = 0;
+    solver_reset(inst->memory, inst->model->n_states); /* the states may have jumped: a new history */
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
@@ -732,6 +758,10 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (earlyReturn) *earlyReturn = fmi3False;
     status = do_step(inst, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
     if (lastSuccessfulTime) *lastSuccessfulTime = inst->core->time;
+    if (status <= LAYER_WARNING && inst->core->event_pending) { /* stopped at an event (event mode) */
+        if (eventHandlingNeeded) *eventHandlingNeeded = fmi3True;
+        if (earlyReturn) *earlyReturn = inst->core->grid_steps > 0; /* before the step's end */
+    }
     if (status == LAYER_DISCARD && inst->core->terminate) {
         /* The step completed and the model asks to end the simulation (FMI 3.0, 4.2.4). */
         if (terminateSimulation) *terminateSimulation = fmi3True;

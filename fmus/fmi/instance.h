@@ -70,6 +70,12 @@ typedef struct {
     int terminate;          /* the model reported MODEL_TERMINATE: the simulation ends after this step */
     double next_event_time; /* the model's pending time event (INFINITY: none) */
     long long events;       /* events handled (Co-Simulation: inside doStep) */
+    /* FMI 3.0 Co-Simulation in event mode (Instance.event_mode_used): doStep stopped at an event that the
+     * importer handles in event mode (event_pending); where it returned early, the step's grid of
+     * internal steps, which the doStep completing it goes on with (grid_steps 0: none) */
+    int event_pending;
+    long long grid_steps;
+    double grid_t0, grid_h, grid_t1;
 } Core;
 
 /* A Binary slot of the block. */
@@ -122,6 +128,11 @@ struct Instance {
     double *dx;              /* n_states */
     double *input_values;    /* Real inputs as the master set them for the running doStep, n_real_inputs */
     double comm_point;       /* t_c: start of the running doStep [s] (origin of the input polynomials) */
+    double comm_end;         /* its end [s] */
+    /* FMI 3.0 Co-Simulation, as instantiated (hasEventMode: a model with events): doStep stops at an event
+     * and leaves it to event mode, at once where early return is allowed, else at the step's end only */
+    int event_mode_used;
+    int early_return_allowed;
     double *jac;             /* n_states x n_states */
     double *saved_reals;     /* n_reals: finite differences restore from here */
     double *fd_seed_base;    /* n_variables: known values around which to differentiate */
@@ -255,6 +266,9 @@ int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop);
 /* The event update at the current time and states, once: *needed (it changed something: call again),
  * *states_changed, *terminate; the next time event into Core.  0 on success (logs on failure). */
 int event_update(Instance *inst, const char *function, int *needed, int *states_changed, int *terminate);
+/* Whether the model has events (indicators, an event update or step events): FMI 3.0 Co-Simulation
+ * offers Event Mode for it (hasEventMode). */
+int model_has_events(const ModelDef *m);
 /* The whole event iteration (event_update until nothing changes), as doStep and initialization run it;
  * one that does not end leaves its reason as the model's error (model_error_suffix) for the caller. */
 int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate);

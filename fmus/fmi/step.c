@@ -81,6 +81,10 @@ int completed_in_step(void *ctx, double t, const double *x, int *event, int *sto
 int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop) {
     Instance *inst = ctx;
     int changed = 0;
+    if (inst->event_mode_used && (inst->early_return_allowed || t >= inst->comm_end)) {
+        *stop = ODE_EVENT; /* FMI 3.0 event mode: the importer handles it (fmi3UpdateDiscreteStates) */
+        return 0;
+    }
     inputs_at(inst, t);
     inst->core->time = t;
     scatter_states(inst, x);
@@ -126,14 +130,26 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
                   t, c->time);
         return LAYER_ERROR;
     }
-    steps = internal_steps(inst, function, H);
-    if (steps == 0) return LAYER_ERROR;
-    h = H / (double)steps;
+    /* the rest of a step returned early from (FMI 3.0 event mode): on that step's grid, to its end (t + H
+     * but for the rounding of the importer's H = end - t) */
+    const int resume =
+        c->grid_steps > 0 && t > c->grid_t0 && fabs(t + H - c->grid_t1) <= 1e-9 * (c->grid_t1 - c->grid_t0);
+    double t0 = t, t1 = t + H, reached = t1;
+    if (resume) {
+        steps = c->grid_steps, h = c->grid_h, t0 = c->grid_t0, t1 = c->grid_t1;
+    } else {
+        steps = internal_steps(inst, function, H);
+        if (steps == 0) return LAYER_ERROR;
+        h = H / (double)steps;
+    }
+    c->grid_steps = 0;
+    c->event_pending = 0;
 
     for (int i = 0; i < inst->n_real_inputs; i++)
         inst->input_values[i] = inst->reals[inst->real_input_slot[i]];
     inst->comm_point = t;
     inst->asked_time = NAN;
+    inst->comm_end = t1;
     gather_states(inst, inst->x);
     if (n > 0 || m->update) { /* substep j from t + j h (from the integer j: no drift), events on the way */
         const OdeProblem problem = {kind,
@@ -148,11 +164,17 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
                                     event_in_step,
                                     inst,
                                     EVENT_TOLERANCE};
-        rc = ode_advance(&problem, inst->events, t, h, steps, t + H, inst->x, &c->next_event_time, &c->events);
+        rc = ode_advance_from(&problem, inst->events, t0, h, steps, t1, t, inst->x, &c->next_event_time,
+                              &c->events, &reached);
         if (rc == ODE_STOP) { /* the model ends the simulation: this step completes */
             c->terminate = 1;
             rc = 0;
-        }
+        } else if (rc == ODE_EVENT) { /* event mode: the step ends at the event; the importer handles it */
+            c->event_pending = 1;
+            if (reached < t1) c->grid_steps = steps, c->grid_h = h, c->grid_t0 = t0, c->grid_t1 = t1;
+            rc = 0;
+        } else
+            reached = t1;
     }
 
     /* Restore the inputs the master set and forget this step's derivatives. */
@@ -168,7 +190,7 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
         return c->fatal ? LAYER_FATAL : LAYER_ERROR;
     }
     scatter_states(inst, inst->x);
-    c->time = t + H;
+    c->time = c->event_pending ? reached : t1;
     mark_dirty(inst);
     if (refresh(inst, 0, function) || check_finite(inst, function)) {
         c->state = ST_ERROR;

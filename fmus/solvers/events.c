@@ -136,10 +136,13 @@ static int locate(const OdeProblem *p, EventWork *e, double t, double h, double 
 static int handle_event(const OdeProblem *p, EventWork *e, double t, double *x, double *next_time, long long *events)
 {
     int stop = 0;
-    (*events)++;
     if (p->event(p->ctx, t, x, next_time, &stop) != 0) {
         return 1;
     }
+    if (stop == ODE_EVENT) { /* left to the caller, nothing done: x is the state at t */
+        return ODE_EVENT;
+    }
+    (*events)++;
     solver_reset(p->memory, p->n);
     if (stop) {
         return ODE_STOP;
@@ -150,10 +153,19 @@ static int handle_event(const OdeProblem *p, EventWork *e, double t, double *x, 
 int ode_advance(const OdeProblem *p, EventWork *e, double t0, double h, long long steps, double t1, double *x,
                 double *next_time, long long *events)
 {
+    return ode_advance_from(p, e, t0, h, steps, t1, t0, x, next_time, events, NULL);
+}
+
+int ode_advance_from(const OdeProblem *p, EventWork *e, double t0, double h, long long steps, double t1, double from,
+                     double *x, double *next_time, long long *events, double *reached_time)
+{
     const int watch = p->indicators != NULL && p->n_z > 0;
-    double now = t0;
+    double now = from;
     int rc, stop_after = 0;
-    if (watch && p->indicators(p->ctx, t0, x, e->z) != 0) {
+    if (reached_time != NULL) {
+        *reached_time = from;
+    }
+    if (watch && p->indicators(p->ctx, from, x, e->z) != 0) {
         return 1;
     }
     for (long long j = 0; j < steps; j++) {
@@ -195,6 +207,9 @@ int ode_advance(const OdeProblem *p, EventWork *e, double t0, double h, long lon
                 return 1;
             }
             stop_after |= ends; /* the steps go on to t1, then the simulation ends */
+            if (reached_time != NULL) {
+                *reached_time = now;
+            }
             if ((event || state_event || step_event) && (rc = handle_event(p, e, now, x, next_time, events)) != 0) {
                 return rc;
             }

@@ -62,6 +62,8 @@ typedef int (*CompletedFn)(void *ctx, double t, const double *x, int *event, int
 /* The event iteration at (t, x): may change x; writes the next time event (INFINITY: none) and *stop
  * (1: the model ends the simulation). 0: ok */
 typedef int (*EventFn)(void *ctx, double t, double *x, double *next_time, int *stop);
+/* EventFn's *stop = ODE_EVENT: the event is not handled here; ode_advance returns ODE_EVENT at once, x the
+ * state at the event's time (an FMI 3 Co-Simulation FMU in event mode returns from doStep there). */
 
 #define EVENT_TOLERANCE 1e-10 /* s: state events are located to this interval */
 
@@ -85,7 +87,7 @@ void event_work_free(EventWork *e);
 
 /* What ode_advance returns: 0, the solver's codes 1 (f, jac, the indicators, completed or the event
  * failed), 2 (singular), 3 (bad kind), or ODE_STOP: the model ends the simulation (an event's: at once, x at that time; completed's: at t1). */
-enum { ODE_STOP = 4 };
+enum { ODE_STOP = 4, ODE_EVENT = 5 };
 
 /* Integrate x from t0 to t1 in `steps` steps of size h (t1 = t0 + steps h but for rounding): step j from
  * t0 + j h, the last ending at t1 exactly; without events exactly what solver_step alone gives,
@@ -93,6 +95,11 @@ enum { ODE_STOP = 4 };
  * events; *events counts them. */
 int ode_advance(const OdeProblem *p, EventWork *e, double t0, double h, long long steps, double t1, double *x,
                 double *next_time, long long *events);
+/* ode_advance on the same grid of steps, begun at time `from` (t0 <= from < t1, x the state there): a step
+ * cut by `from` is taken from there to its end (an FMI 3 FMU completing a step it returned early from).
+ * *reached_time (NULL: not wanted): the time x belongs to on return (the event's on ODE_EVENT). */
+int ode_advance_from(const OdeProblem *p, EventWork *e, double t0, double h, long long steps, double t1, double from,
+                     double *x, double *next_time, long long *events, double *reached_time);
 
 /* Dense LU with partial pivoting, row major n x n; returns 0, or 1 if singular. */
 int lu_factor(int n, double *A, int *pivots);

@@ -110,6 +110,7 @@ def open_fmu(sc: Scenario, comp: Component) -> Fmu:
         model_exchange=comp.model_exchange is not None,
         intermediate_update=comp.interpolate_inputs,
         scheduled=comp.scheduled,
+        event_mode=comp.event_mode,
     )
     try:
         fmu.set_values(dict(comp.parameters))

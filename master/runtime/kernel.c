@@ -729,8 +729,12 @@ static void estimate(const mk_link *lk, const double *hist, int64_t cap, int64_t
     }
 }
 
+/* When a held input's sample in a step is of, for a component in FMI 3 event mode (mk_component.cs_late):
+ * the step's start or earlier, a time in the step, a later one. */
+enum { CS_AT_START = 0, CS_IN_STEP = 1, CS_AFTER_STEP = 2 };
+
 /* u for macro step n: every link's polynomials (from the live or the previous sweep's histories),
- * then the stimuli. */
+ * then the stimuli; for a component in FMI 3 event mode the time of each held input's sample. */
 static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool relaxed) {
     const int32_t kc = c->step_ratio, nb = c->n_blocks, n_in = c->n_in;
     for (int32_t l = 0; l < c->n_links; l++) {
@@ -763,6 +767,12 @@ static void fill_inputs(const mk_kernel *k, mk_component *c, int64_t n, bool rel
             }
         }
         if (lk->transform) transform_inputs(c, lk);
+        for (int32_t m = 0; c->cs_events && m < kc; m++) { /* the time of a held input's sample, s ks / H */
+            const int64_t s = (base + off[m]) * kc, j = n * kc + m;
+            const uint8_t when = s <= j * lk->k_source ? CS_AT_START : s <= (j + 1) * lk->k_source ? CS_IN_STEP
+                                                                                                 : CS_AFTER_STEP;
+            for (int32_t i = 0; i < lk->n_cols; i++) c->cs_late[(size_t)m * n_in + lk->slot0 + i] = when;
+        }
     }
     /* String and Binary links: the held sample of each step, copied (the source may overwrite its
      * slot once this component has taken its inputs, before the step sets them) */
@@ -992,6 +1002,7 @@ static int me_step_done(void *ctx, double t, const double *x, int *event, int *s
 }
 
 #define MK_EVENT_ROUNDS 1000 /* an event iteration longer than this never ends (MK_EVENT) */
+#define MK_EARLY_RETURNS 1000000 /* FMI 3 event mode: early returns in one communication step (MK_EVENT) */
 #define MK_NEVER_ENDS (-1)   /* me_context.status of such an iteration */
 
 /* The event iteration of an FMU in event mode (new discrete states until none are needed, or the FMU
@@ -1101,8 +1112,11 @@ static int32_t me_step(mk_kernel *k, int32_t ci, const double *u, double t, int6
     return MK_DONE;
 }
 
-/* Start-up: an ME component's multistep history saved with its FMU state (save) or restored. */
+/* Start-up: an ME component's multistep history, an FMI 3 event-mode component's discrete inputs as set,
+ * saved with its FMU state (save) or restored. */
 static void me_history(mk_component *c, bool save) {
+    const size_t held = sizeof(double) * (size_t)c->n_cs_held; /* FMI 3 event mode: the discrete inputs set */
+    if (held) save ? memcpy(c->cs_held_saved, c->cs_held, held) : memcpy(c->cs_held, c->cs_held_saved, held);
     if (!c->me) return;
     const size_t size = sizeof(double) * solver_memory_size(c->n_states);
     if (save) memcpy(c->me_memory_saved, c->me_memory, size), c->me_next_event_saved = c->me_next_event;
@@ -1110,6 +1124,98 @@ static void me_history(mk_component *c, bool save) {
 }
 
 #include "scheduled.c" /* Scheduled Execution components: se_step, mk_scheduled_start */
+
+/* -- FMI 3 Co-Simulation event mode (kernel.h: mk_component.cs_events) ------------------------------- */
+
+/* Whether input slot i is discrete: an FMI 3 FMU in event mode takes a change of it in event mode only. */
+static bool discrete_input(const mk_component *c, int32_t i) {
+    const int32_t typed = c->n_in - c->n_in_typed;
+    return i >= c->n_in_real && (i < typed || c->in_kinds[i - typed] != MK_FLOAT32);
+}
+
+/* Whether a discrete input of step m's inputs u whose sample is of time `when` (CS_*) differs from the
+ * value last set. */
+static bool discrete_changed(const mk_component *c, const double *u, int32_t m, uint8_t when) {
+    const uint8_t *late = c->cs_late + (size_t)m * c->n_in;
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        if (late[i] == when && u[i] != c->cs_held[d]) return true;
+        d++;
+    }
+    return false;
+}
+
+static void hold_discrete(mk_component *c, const double *u) {
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++)
+        if (discrete_input(c, i)) c->cs_held[d++] = u[i];
+}
+
+/* Step m's inputs u (a block of them) with the discrete ones whose sample is of time `from` (CS_*) or
+ * later as last set, into c->scratch. */
+static const double *held_from(mk_component *c, const double *u, int32_t m, uint8_t from) {
+    const uint8_t *late = c->cs_late + (size_t)m * c->n_in;
+    memcpy(c->scratch, u, sizeof(double) * (size_t)c->n_in);
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        if (late[i] >= from) c->scratch[i] = c->cs_held[d];
+        d++;
+    }
+    return c->scratch;
+}
+
+/* The event iteration of an FMI 3 Co-Simulation FMU at its current time (point j's step): event mode,
+ * its inputs u set there where given (an input event; NULL: those of the step, held), then
+ * fmi3UpdateDiscreteStates until no update is needed (at most MK_EVENT_ROUNDS, else MK_EVENT), step
+ * mode. *terminate: 1 when the FMU ends the simulation (left in event mode). */
+static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, int *terminate) {
+    mk_component *c = &k->components[ci];
+    int32_t call = MK_CALL_ENTER_EVENT_MODE;
+    int st = ((fmi_mode *)c->enter_event_mode)(c->instance);
+    if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u) hold_discrete(c, u);
+    bool needed = true, end = false;
+    for (int32_t round = 0; needed; round++) {
+        bool nominals = false, values = false, defined = false;
+        double when = 0.0;
+        if (round == MK_EVENT_ROUNDS) return fail(k, MK_EVENT, ci, MK_CALL_UPDATE_DISCRETE_STATES, 0, j);
+        st = ((fmi3_update_discrete_states *)c->update_discrete_states)(c->instance, &needed, &end, &nominals, &values,
+                                                                       &defined, &when);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_UPDATE_DISCRETE_STATES, st, j);
+        if (end) return *terminate = 1, MK_DONE;
+    }
+    (*c->me_event_count)++;
+    st = ((fmi_mode *)c->enter_step_mode)(c->instance);
+    return st > STATUS_OK ? fail(k, MK_FMI_ERROR, ci, MK_CALL_ENTER_STEP_MODE, st, j) : MK_DONE;
+}
+
+/* fmi3DoStep of an FMU in event mode from point j (time t) to t + h: at an event it reports, the event
+ * iteration at once (its outputs at t + h are those after the event); where it returned early (a time,
+ * state or step event inside the step), the rest of the step after it, its inputs held, so that its
+ * communication points stay those of the schedule. *terminate: 1 when it ends the simulation. */
+static int32_t cs_step(mk_kernel *k, int32_t ci, const double *u, double t, int64_t j, bool final,
+                       int *terminate) {
+    mk_component *c = &k->components[ci];
+    mk_intermediate *iu = c->intermediate; /* asks for its inputs inside the step: u's polynomials from t */
+    const double end = t + c->h;
+    double from = t;
+    for (int64_t events = 0;; events++) {
+        bool event = false, early = false, stop = false;
+        double last = end;
+        if (events == MK_EARLY_RETURNS) /* events without end inside one step (a Zeno point) */
+            return fail(k, MK_EVENT, ci, MK_CALL_DO_STEP, 0, j);
+        const double size = events ? end - from : c->h; /* (the FMU ends the rest at its step's end) */
+        if (iu) iu->component = c, iu->u = u, iu->t0 = t, iu->status = 0;
+        int st = ((fmi3_do_step *)c->do_step)(c->instance, from, size, final, &event, &stop, &early, &last);
+        if (iu) iu->u = NULL;
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
+        if (iu && iu->status > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_REAL, iu->status, j);
+        if (stop) return *terminate = 1, MK_DONE;
+        int32_t code = event ? cs_event(k, ci, NULL, j, terminate) : MK_DONE;
+        if (code != MK_DONE || *terminate || !early || !(last < end)) return code;
+        from = last; /* returned early (at an event, or as the importer asked): the rest of the step */
+    }
+}
 
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
@@ -1128,15 +1234,31 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         int terminate = 0, st;
         int64_t t0 = now_ns();
         int32_t call = 0;
-        if (n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        /* FMI 3 event mode: a discrete input that changed is an input event, at t where its sample is of
+         * t or earlier, at t + h (after the step, which takes it as it was) where it is of a time in the
+         * step, at a later point where it is of a later time */
+        const bool later = c->cs_events && n_in && discrete_changed(c, u, m, CS_IN_STEP);
+        const double *now = c->cs_events && n_in ? held_from(c, u, m, CS_IN_STEP) : u;
+        if (c->cs_events && n_in && discrete_changed(c, u, m, CS_AT_START)) {
+            if ((st = cs_event(k, ci, now, j, &terminate)) != MK_DONE) return st;
+        } else if (n_in && (st = set_inputs(c, now, &call)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, call, st, j);
         const int32_t n_text_in = c->n_in_string + c->n_in_binary;
         if (n_text_in && (st = set_texts(c, c->in_string_vrs, c->string_u + (size_t)m * n_text_in * MK_STRING_SLOT,
                                          c->n_in_string, c->n_in_binary, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         if (c->n_derivatives && (st = set_derivatives(c, u)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
+        if (terminate) { /* it ended the simulation at the input event: before this step */
+            request_stop(k, ci, j - 1, n);
+            return MK_STOPPED;
+        }
         if (c->me) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
+        } else if (c->cs_events) {
+            if ((st = cs_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
+            const double *at_end = held_from(c, u, m, CS_AFTER_STEP); /* the input event at t + h */
+            if (later && !terminate && (st = cs_event(k, ci, at_end, j, &terminate)) != MK_DONE) return st;
         } else if ((st = c->intermediate ? intermediate_step(c, u, t, final, &terminate, &call)
                                          : do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, c->intermediate ? call : MK_CALL_DO_STEP, st, j);
@@ -1144,7 +1266,9 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             request_stop(k, ci, j - 1, n);
             return MK_STOPPED;
         }
-        if (c->feedthrough && (st = set_inputs(c, u + n_in, &call)) > STATUS_OK)
+        /* the step-end inputs, in step mode: the discrete ones of an FMU in event mode as they were set */
+        const double *step_end = c->cs_events ? held_from(c, u + n_in, m, CS_AT_START) : u + n_in;
+        if (c->feedthrough && (st = set_inputs(c, step_end, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
@@ -1706,7 +1830,12 @@ int32_t mk_initial_sweep(mk_kernel *k, int32_t ci) {
     int st;
     int64_t t0 = now_ns();
     int32_t call = 0;
-    if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    int terminate = 0;
+    if (c->cs_stepping && c->n_in && discrete_changed(c, u, 0, CS_AT_START)) { /* an input event at the start */
+        if ((st = cs_event(k, ci, u, 0, &terminate)) != MK_DONE) return st;
+    } else if (c->n_in && (st = set_inputs(c, u, &call)) > STATUS_OK)
+        return fail(k, MK_FMI_ERROR, ci, call, st, 0);
+    if (c->cs_events) hold_discrete(c, u);
     for (int32_t l = 0; l < c->n_string_links; l++) {
         const mk_link *lk = &c->string_links[l];
         const mk_component *src = &k->components[lk->source];

@@ -83,6 +83,8 @@ enum {
     MK_CALL_ENTER_CONTINUOUS_TIME_MODE,
     /* Scheduled Execution (mk_scheduled) */
     MK_CALL_ACTIVATE_MODEL_PARTITION, MK_CALL_GET_CLOCK, MK_CALL_GET_INTERVAL,
+    /* FMI 3 Co-Simulation event mode */
+    MK_CALL_ENTER_STEP_MODE,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -361,6 +363,27 @@ typedef struct {
      * mk_intermediate_update */
     mk_intermediate *intermediate;
     mk_scheduled *scheduled; /* NULL: none (a Co-Simulation or Model Exchange component) */
+    /* FMI 3 Co-Simulation in event mode (cs_events = 1: instantiated with eventModeUsed and early return
+     * allowed, master/fmu.py). doStep returns at an event (eventHandlingNeeded; earlyReturn with
+     * lastSuccessfulTime, the event's time, inside the step): the kernel does the event iteration there
+     * (fmi3EnterEventMode, fmi3UpdateDiscreteStates until none is needed, fmi3EnterStepMode) and, after
+     * an early return, steps on from that time to the step's end, the inputs held: the component's
+     * communication points stay the schedule's. A discrete input (any kind but Real and Float32) that
+     * changes is set in event mode with an event iteration (an input event) at the time of the sample
+     * that brings the change: at the step's start where that sample is of its start or earlier, else
+     * (a source that goes first, a relaxed sweep: a sample of a later time; cs_late, written with the
+     * inputs) after the step, which takes the value as it was. A discrete signal thus passes from an
+     * event of its source to its consumers at their first point where they see the new sample.
+     * cs_held: the n_cs_held discrete inputs as last set (saved with the FMU state in start-up:
+     * cs_held_saved); events are counted in *me_event_count. */
+    int32_t cs_events;
+    mk_function enter_step_mode;
+    int32_t cs_stepping; /* 1 once out of initialisation mode: the start time's sweeps after it set a
+                            changed discrete input through an input event too */
+    int32_t n_cs_held;
+    uint8_t *cs_late; /* [step_ratio][n_in]: 1 where a held input's sample of step m is of a later time */
+    double *cs_held;
+    double *cs_held_saved;
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -53,6 +53,7 @@ INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for Solver
     CLOCK,  # a Scheduled Execution FMU counted a clock down off its grid (kernel.h)
 ) = range(14)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
+EARLY_RETURNS = 1_000_000  # FMI 3 event mode: most early returns in a communication step (MK_EARLY_RETURNS)
 CALLS = (
     "set_real",
     "set_derivatives",
@@ -88,6 +89,8 @@ CALLS = (
     "activate_model_partition",
     "get_clock",
     "get_interval",
+    # FMI 3 Co-Simulation event mode
+    "enter_step_mode",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -356,6 +359,13 @@ class Component(C.Structure):
         ("me_input_events", _i32),
         ("intermediate", C.POINTER(Intermediate)),
         ("scheduled", C.POINTER(Scheduled)),
+        ("cs_events", _i32),
+        ("enter_step_mode", _p),
+        ("cs_stepping", _i32),
+        ("n_cs_held", _i32),
+        ("cs_late", C.POINTER(C.c_uint8)),
+        ("cs_held", C.POINTER(C.c_double)),
+        ("cs_held_saved", C.POINTER(C.c_double)),
     ]
 
 

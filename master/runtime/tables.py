@@ -475,6 +475,8 @@ class CompiledPlan:
             self._intermediate(c, fmu, in_names[: c.n_in_real])
         if pc.scheduled is not None:
             self._scheduled(c, pc, fmu)
+        if fmu.event_mode:
+            self._event_mode(c, pc, fmu, in_kinds)
 
     def _intermediate(self, c: native.Component, fmu: Fmu, real_inputs: list[str]) -> None:
         """An FMU that asks for its inputs inside doStep (kernel.h mk_intermediate): which of its Real
@@ -515,6 +517,20 @@ class CompiledPlan:
             setattr(t, slot, f)
         self._keep.append(t)
         c.scheduled = C.pointer(t)
+
+    def _event_mode(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_kinds: list[str]) -> None:
+        """An FMI 3 Co-Simulation component in event mode (kernel.h: mk_component.cs_events): its
+        discrete inputs as last set, whether each step's held inputs are samples of a later time,
+        events counted beside its steps."""
+        _require(fmu, "enter_event_mode", pc.name)
+        _require(fmu, "update_discrete_states", pc.name)
+        _require(fmu, "enter_step_mode", pc.name)
+        c.cs_events = 1
+        c.n_cs_held = held = sum(kind not in ("Real", "Float32") for kind in in_kinds)
+        c.cs_late = _ptr(self._array(np.zeros((c.step_ratio, max(len(in_kinds), 1))), np.uint8), C.c_uint8)
+        c.cs_held = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
+        c.cs_held_saved = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
+        c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
@@ -765,6 +781,8 @@ class CompiledPlan:
             self._intervals(name, fmu)
             if self.lib.mk_scheduled_start(self.ref, self.names.index(name)) != native.DONE:
                 raise self.error(initial=True)
+        if fmu.event_mode:  # in step mode: its discrete inputs change in event mode from now on (kernel.h)
+            self.components[self.names.index(name)].cs_stepping = 1
         if fmu.model_exchange:  # the time event its initial event iteration asked for
             c = self.components[self.names.index(name)]
             c.me_next_event = fmu.next_event_time
@@ -931,6 +949,9 @@ class CompiledPlan:
             return self._clock_error(e, name, fmu, pc)
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
+        if e.code == native.EVENT and call == "do_step":  # kernel.c cs_step
+            why = f"returns early from fmi3DoStep without end ({native.EARLY_RETURNS} times)"
+            return SimulationError(f"{name}: {why} {step}", name, t)
         if e.code == native.EVENT:
             new = FMI_FUNCTIONS["update_discrete_states"][fmu.fmi - 1]
             return SimulationError(
@@ -939,7 +960,7 @@ class CompiledPlan:
         if call == "solver":
             why = "a singular linear system" if e.status == 2 else f"solver code {e.status}"
             return SimulationError(f"{name}: the Model Exchange integration failed ({why}) {step}", name, t)
-        if call in ME_CALLS or call == "directional_derivative":
+        if call in ME_CALLS or call in ("directional_derivative", "enter_step_mode"):
             slot = "get_directional_derivative" if call == "directional_derivative" else call
             failed = FMICallException(function=FMI_FUNCTIONS[slot][fmu.fmi - 1], status=e.status)
             cause = FmuError(fmu.describe(str(failed)))

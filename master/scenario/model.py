@@ -32,6 +32,9 @@ class Component:
     # run as Scheduled Execution: the master activates its clocks' model partitions (master.clocks);
     # asked for (implementation="ScheduledExecution") or the FMU's only interface
     scheduled: bool = False
+    # an FMI 3 Co-Simulation FMU with Event Mode (hasEventMode) is instantiated with eventModeUsed and
+    # early return allowed (False: without, its events handled inside its doStep)
+    event_mode: bool = True
 
 
 @dataclass(frozen=True)

@@ -193,6 +193,7 @@ def _read(
             group=setup.group.get(c.name),
             model_exchange=setup.model_exchange.get(c.name),
             scheduled=c.name in setup.scheduled,
+            event_mode=setup.event_mode.get(c.name, True),
         )
         for c in ctx.comps.values()
         if c.info is not None

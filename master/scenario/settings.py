@@ -37,6 +37,7 @@ class Settings:
     step_ratio: dict[str, int] = field(default_factory=dict)
     extrapolation_order: dict[str, int] = field(default_factory=dict)
     interpolate_inputs: dict[str, bool] = field(default_factory=dict)
+    event_mode: dict[str, bool] = field(default_factory=dict)  # eventMode="false": without (model.Component)
     group: dict[str, str] = field(default_factory=dict)
     connection_order: dict[tuple[str, str], int] = field(default_factory=dict)  # (comp, input) -> order
     internal_step: dict[str, Fraction] = field(default_factory=dict)  # interpolating FMUs' substeps (s)
@@ -300,6 +301,14 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
         # The global default only applies where the FMU can; an explicit request must be honoured.
         s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
+        events = _bool(attrs.get("eventMode"))
+        cs = comp.info.co_simulation if comp.info is not None else None
+        if events and comp.info is not None and not (cs and cs.event_mode):
+            ctx.at(
+                ce, f"eventMode: {comp.info.path.name} has no FMI 3 Co-Simulation Event Mode (hasEventMode)"
+            )
+        if events is not None:
+            s.event_mode[name] = events
         k = s.step_ratio[name]
         if s.interpolate_inputs[name] and can and k > 1:
             _substeps(ctx, ce, s, name, comp.info.variables.get(INTERNAL_STEP), k)
