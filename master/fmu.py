@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import os
 import shutil
 import tempfile
 import zipfile
@@ -85,8 +86,8 @@ def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescriptio
 
 
 def safe_extract(path: Path, dest: Path) -> Path:
-    """Extract what running the FMU archive `path` needs into `dest`; refuse unsafe members (the
-    check of master.archives) and report damaged data as an FmuError.
+    """Extract what running the FMU archive `path` needs into `dest`, a new folder; refuse unsafe
+    members (the check of master.archives) and report damaged data as an FmuError.
 
     Every member is checked; documentation/, other platforms' binaries and, when this platform's
     binary is there, sources/ are not written (a run extracts each FMU afresh: most of an FMU
@@ -98,8 +99,9 @@ def safe_extract(path: Path, dest: Path) -> Path:
                 reason = unsafe(info)
                 if reason:
                     raise FmuError(f"{path}: member {info.filename!r}: {reason}")
-                target = (dest / info.filename).resolve()
-                if target != dest and dest not in target.parents:
+                # lexical: no member is a link (`unsafe`) and dest is new, so no path resolves elsewhere
+                target = os.path.normpath(os.path.join(dest, info.filename))
+                if target != str(dest) and not target.startswith(os.path.join(dest, "")):
                     raise FmuError(f"{path}: archive member escapes the extraction folder: {info.filename!r}")
             zf.extractall(dest, members=_needed(zf.namelist()))
     except DAMAGED as err:
@@ -198,8 +200,15 @@ class Fmu:
     """
 
     def __init__(
-        self, path: Path, instance_name: str, workdir: Path | None = None, model_exchange: bool = False
+        self,
+        path: Path,
+        instance_name: str,
+        workdir: Path | None = None,
+        model_exchange: bool = False,
+        unpacked: Path | None = None,
     ):
+        """unpacked: a folder where `path` is extracted already (`safe_extract`), shared with its
+        other instances: neither extracted again nor removed by `close`."""
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
@@ -212,15 +221,16 @@ class Fmu:
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
-        self._own_dir = workdir is None
-        self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
+        self._own_dir = workdir is None and unpacked is None
+        self.dir = unpacked or workdir or Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_"))
         self.slave = None
         self._instantiated = False
         self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
         self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
         _LOGGING[self._log_key] = self
         try:
-            safe_extract(self.path, self.dir)
+            if unpacked is None:
+                safe_extract(self.path, self.dir)
             self._load()
         except BaseException:
             self.close()

@@ -26,7 +26,7 @@ from functools import partial
 
 import numpy as np
 
-from master.backends.component import SimulationError, open_fmu, output_names
+from master.backends.component import SimulationError, Unpacked, open_fmu, output_names
 from master.backends.driver import signals_deferred
 from master.backends.in_process import initialize_sweeps
 from master.backends.janitor import Janitor
@@ -127,9 +127,10 @@ class _Task:
             os.sched_setaffinity(0, {self.cpu})
         self.memory.touch()
         sc = self.plan.scenario
+        unpacked = Unpacked(self.tmp)  # removed with self.tmp by the master
         for i, name in enumerate(self.components):
             where[0] = i
-            self.fmus[name] = open_fmu(sc, sc.component(name))
+            self.fmus[name] = open_fmu(sc, sc.component(name), unpacked)
         self.cp = CompiledPlan(
             self.plan, self.fmus, self.outs, self.memory, self.worker, self.n_workers, self.spin
         )
