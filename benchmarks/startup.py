@@ -35,6 +35,7 @@ from pathlib import Path
 
 import master.api as api
 import master.backends.component as component_mod
+import master.backends.janitor as janitor_mod
 import master.backends.worker as worker_mod
 import master.backends.workers as workers_mod
 import master.fmu as fmu_mod
@@ -73,7 +74,8 @@ def instrument() -> None:
     w, ws, f = worker_mod, workers_mod, fmu_mod
     _wrap(ws, "read_description", "open: read descriptions (cached)")
     _wrap(ws, "Memory", "open: shared memory")
-    _wrap(ws, "Janitor", "open: fork the janitor")
+    _wrap(janitor_mod.Janitor, "close", "close: end the janitor")
+    _wrap(ws, "Janitor", "open: start the janitor")
     _wrap(ws.WorkerPool, "__init__", "open: start the worker, wait for its set-up")
     _wrap(w.mp.process.BaseProcess, "start", "open: fork the worker (master side)")
     _wrap(w, "_worker_main", "worker: alive")
@@ -91,7 +93,6 @@ def instrument() -> None:
     _wrap(ws.WorkerBackend, "run", "step")
     _wrap(ws.WorkerPool, "close", "close: stop, reap the worker")
     _wrap(ws.shutil, "rmtree", "close: remove a folder")
-    _wrap(ws.Janitor, "close", "close: end the janitor")
 
 
 def tiny():
