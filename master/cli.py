@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import difflib
 import json
 import logging
 import os
@@ -298,6 +297,8 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         sys.exit(2)
     args, unknown = p.parse_known_args(argv)
     if unknown:
+        import difflib
+
         sub = p.commands[args.command]  # type: ignore[attr-defined]
         known = [o for a in sub._actions for o in a.option_strings]
         close = difflib.get_close_matches(unknown[0].split("=")[0], known, n=1)
