@@ -14,7 +14,8 @@ temporary folder, the janitor).
 
 Part 2, in fresh processes: `python -c pass`, `import numpy`, `import master`, `master --version`,
 `master validate` and `master run` of the oscillator (1000 macro steps) from the shell, serial
-and in-process (medians of wall time).
+and in-process (medians of wall time), with the modules' bytecode cached as an installed
+package has it (PYTHONDONTWRITEBYTECODE, if set, is lifted for them).
 
 Every figure is a median over `--repeat` runs; the load average is printed with each part: the
 machine may be shared.
@@ -33,6 +34,7 @@ import time
 from fractions import Fraction
 from pathlib import Path
 
+import master
 import master.api as api
 import master.backends.component as component_mod
 import master.backends.janitor as janitor_mod
@@ -55,8 +57,11 @@ def _mark(label: str) -> None:
 
 
 def _wrap(owner: object, attr: str, label: str) -> None:
-    """Replace owner.attr by the same function stamping `label` at its start and end."""
-    fn = getattr(owner, attr)
+    """Replace owner.attr by the same function stamping `label` at its start and end (nothing
+    where owner has no attr: an older tree, compared with this one)."""
+    fn = getattr(owner, attr, None)
+    if fn is None:
+        return
 
     @functools.wraps(fn)
     def timed(*args, **kwargs):
@@ -179,8 +184,11 @@ def in_process(sc, n: int) -> None:
 
 def cli(n: int) -> None:
     py = sys.executable
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    tree = str(Path(master.__file__).resolve().parent.parent)  # the tree this process runs
     with tempfile.TemporaryDirectory(prefix="bench-startup-") as tmp:
+        # compiled modules kept (in tmp), as an installed package has them
+        env = {**os.environ, "PYTHONPATH": tree, "PYTHONPYCACHEPREFIX": str(Path(tmp) / "pycache")}
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
         out = str(Path(tmp) / "o.csv")
         osc = str(OSCILLATOR)
         commands = {

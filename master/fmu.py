@@ -119,6 +119,30 @@ def _needed(names: list[str]) -> list[str]:
     return [n for n in names if n.startswith(ours) or not n.startswith(skip)]
 
 
+@functools.cache
+def _signatures_once(cls: type) -> type:
+    """fmpy's FMI 2 / FMI 3 class `cls`, but reading the C signatures of its FMI functions once per
+    class: fmpy reads them with `inspect` from its ~35 Python methods for every instance again (about
+    1.4 ms of a run's start per FMU). Where fmpy is not as expected, its own reading stands."""
+    signatures: list[tuple[str, list, list, object]] = []
+
+    def _loadFunctions(self) -> None:  # noqa: N802 (fmpy's name)
+        if not signatures:
+            cls._loadFunctions(self)
+            try:
+                signatures.extend((n, f.argnames, f.argtypes, f.restype) for n, f in self._functions.items())
+            except AttributeError:
+                pass
+            return
+        for name, argnames, argtypes, restype in signatures:  # FMI 2 and 3: the C name is the method's
+            f = getattr(self.dll, name)
+            f.argnames, f.argtypes, f.restype = argnames, argtypes, restype
+            self._functions[name] = f
+
+    # the same name: fmpy tells the FMI versions apart by it
+    return type(cls.__name__, (cls,), {"_loadFunctions": _loadFunctions, "__module__": __name__})
+
+
 # FMI 2 log messages reach the instance through its componentEnvironment, FMI 1 ones (whose logger
 # has the same C signature) through the instance pointer or, while it is being instantiated, its
 # name: one logger serves all, which fmpy's message-formatting proxy (one per process) needs
@@ -249,7 +273,7 @@ class Fmu:
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-                self.slave = (FMU3Model if self.model_exchange else FMU3Slave)(**kw)
+                self.slave = _signatures_once(FMU3Model if self.model_exchange else FMU3Slave)(**kw)
                 self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
@@ -263,7 +287,7 @@ class Fmu:
                     fmi2CallbackFunctions,
                 )
 
-                self.slave = (FMU2Model if self.model_exchange else FMU2Slave)(**kw)
+                self.slave = _signatures_once(FMU2Model if self.model_exchange else FMU2Slave)(**kw)
                 cb = fmi2CallbackFunctions()
                 cb.logger = _fmi2_logger()
                 cb.componentEnvironment = ctypes.c_void_p(self._log_key)
