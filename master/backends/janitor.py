@@ -3,7 +3,8 @@
 The master can remove what it made unless it is killed outright (SIGKILL, the OOM killer): then
 its workers die with it (PR_SET_PDEATHSIG) and the extracted FMUs (master-run-*) and the raw
 results (master_results_*) would stay in the temporary folder. A janitor, a small shell started
-at the beginning of the run, reads a pipe whose write end only the master and its workers hold:
+at the beginning of the run in a session of its own (a signal to the terminal's process group is
+not for it), reads a pipe whose write end only the master and its workers hold:
 it learns the folders through the pipe, one a line, and, when the pipe ends without the master's
 "done" (every holder died), removes them. The results CSV is not among them: the rows written so
 far stay. A shell, not a fork of the master: it starts and ends in a fraction of a millisecond,
@@ -16,7 +17,7 @@ import os
 import subprocess
 
 SCRIPT = (
-    'trap "" INT TERM HUP; '  # Ctrl-C reaches the whole process group: the master's to handle
+    'trap "" INT TERM HUP; '  # signals are the master's to handle (the shell has a session of its own)
     'while IFS= read -r f; do [ "$f" = done ] && exit 0; set -- "$@" "$f"; done; '  # collect ...
     'rm -rf -- "$@"'  # ... and at the end of the pipe without "done", remove
 )
@@ -34,6 +35,7 @@ class Janitor:
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
                 close_fds=True,
+                start_new_session=True,  # out of the terminal's process group: Ctrl-C, a group's kill
             )
         except BaseException:
             os.close(self._write)
@@ -60,5 +62,5 @@ class Janitor:
     def _send(self, data: bytes) -> None:
         try:
             os.write(self._write, data)  # a path is shorter than PIPE_BUF: written at once
-        except OSError:  # the janitor is gone (killed with the master's process group): nothing to tell
+        except OSError:  # the janitor is gone (killed on its own): nothing to tell
             pass
