@@ -445,17 +445,20 @@ class WorkerBackend:
             n: float(ft[i, 0]) for i, n in enumerate(self.names)
         }
 
+    def _remove_files(self) -> None:
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.tmp = None
+
     def close(self) -> None:
         """Stop the workers (killing any that do not stop), remove the extracted FMUs."""
         try:
             self.cancel()
             if self.pool is not None:
-                self.pool.close()
+                self.pool.close(while_ending=self._remove_files)  # while the workers' processes end
         finally:
             self.pool = None
-            if self.tmp is not None:
-                shutil.rmtree(self.tmp, ignore_errors=True)
-                self.tmp = None
+            self._remove_files()
             if self.janitor is not None:
                 self.janitor.close()
                 self.janitor = None
