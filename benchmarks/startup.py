@@ -15,7 +15,10 @@ temporary folder, the janitor).
 Part 2, in fresh processes: `python -c pass`, `import numpy`, `import master`, `master --version`,
 `master validate` and `master run` of the oscillator (1000 macro steps) from the shell, serial
 and in-process (medians of wall time), with the modules' bytecode cached as an installed
-package has it (PYTHONDONTWRITEBYTECODE, if set, is lifted for them).
+package has it (PYTHONDONTWRITEBYTECODE, if set, is lifted for them), and whole `master.run`s of
+the tiny scene and of the oscillator (1000 macro steps), serial and in-process (best of 3 per
+process). --against DIR: part 2 for the checkout in DIR as well, the two alternating sample by
+sample (before/after figures on a shared machine).
 
 Every figure is a median over `--repeat` runs; the load average is printed with each part: the
 machine may be shared.
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import os
 import statistics
 import subprocess
@@ -182,13 +186,29 @@ def in_process(sc, n: int) -> None:
         print(f"  api.run, {be:<44} {_ms(walls)}   (load {_load()})")
 
 
-def cli(n: int) -> None:
+PROBE = """
+import json, time
+from fractions import Fraction
+import master.api as api
+from master.evidence.oscillator import scene
+cases = {"tiny": scene(split="force", stop_time=Fraction(1, 10), order=2),
+         "oscillator": scene(split="force", stop_time=Fraction(10), order=2)}
+out = {}
+for name, sc in [*cases.items()] * 4:
+    for be in ("serial", "in-process"):
+        t0 = time.perf_counter_ns()
+        api.run(sc, backend=be)
+        out.setdefault(f"api.run {name} {be} (best of 3)", []).append(time.perf_counter_ns() - t0)
+print(json.dumps({k: min(v[1:]) for k, v in out.items()}))  # the first of each: warming up
+"""
+
+
+def cli(n: int, trees: dict[str, str]) -> None:
+    """The commands in fresh processes of each tree (PYTHONPATH; run from an empty folder, so
+    that no checkout in the current one comes first), interleaved, the trees' order alternating
+    from sample to sample; `api.run` (whole runs, best of 3) in a fresh process too."""
     py = sys.executable
-    tree = str(Path(master.__file__).resolve().parent.parent)  # the tree this process runs
     with tempfile.TemporaryDirectory(prefix="bench-startup-") as tmp:
-        # compiled modules kept (in tmp), as an installed package has them
-        env = {**os.environ, "PYTHONPATH": tree, "PYTHONPYCACHEPREFIX": str(Path(tmp) / "pycache")}
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
         out = str(Path(tmp) / "o.csv")
         osc = str(OSCILLATOR)
         commands = {
@@ -202,17 +222,32 @@ def cli(n: int) -> None:
                 *[py, "-m", "master", "run", osc, "-o", out, "-q", "--in-process"]
             ],
         }
-        for cmd in commands.values():  # warm: FMUs built, caches filled
-            subprocess.run(cmd, check=True, capture_output=True, env=env)
-        walls: dict[str, list[int]] = {k: [] for k in commands}
-        for _ in range(n):  # interleaved
-            for k, cmd in commands.items():
-                t0 = time.perf_counter_ns()
-                subprocess.run(cmd, check=True, capture_output=True, env=env)
-                walls[k].append(time.perf_counter_ns() - t0)
-    print(f"\ncommand line, wall time of a fresh process (medians of {n}; load {_load()})")
-    for k, v in walls.items():
-        print(f"  {k:<52} {_ms(v)}")
+        envs = {}
+        for name, tree in trees.items():
+            # compiled modules kept (in tmp), as an installed package has them
+            env = {**os.environ, "PYTHONPATH": tree, "PYTHONPYCACHEPREFIX": str(Path(tmp) / name)}
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            envs[name] = env
+            for cmd in commands.values():  # warm: FMUs built, caches filled
+                subprocess.run(cmd, check=True, capture_output=True, env=env, cwd=tmp)
+        walls: dict[str, dict[str, list[int]]] = {name: {} for name in trees}
+        loads = []
+        for i in range(n):
+            for name in list(trees)[:: 1 if i % 2 == 0 else -1]:
+                for k, cmd in commands.items():
+                    t0 = time.perf_counter_ns()
+                    subprocess.run(cmd, check=True, capture_output=True, env=envs[name], cwd=tmp)
+                    walls[name].setdefault(k, []).append(time.perf_counter_ns() - t0)
+                probe = subprocess.run(
+                    [py, "-c", PROBE], check=True, capture_output=True, text=True, env=envs[name], cwd=tmp
+                )
+                for k, ns in json.loads(probe.stdout).items():
+                    walls[name].setdefault(k, []).append(ns)
+            loads.append(os.getloadavg()[0])
+    print(f"\nfresh processes, medians of {n} (min); load average {min(loads):.2f}-{max(loads):.2f}")
+    print("  " + " " * 40 + "".join(f"{name:>28}" for name in trees))
+    for k in walls[next(iter(trees))]:
+        print(f"  {k:<40}" + "".join(f"{_ms(walls[name][k]):>28}" for name in trees))
 
 
 def _ms(values: list[int]) -> str:
@@ -227,6 +262,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=30)
     ap.add_argument("--no-cli", action="store_true", help="part 1 only")
+    ap.add_argument(
+        "--against",
+        metavar="DIR",
+        help="part 2 also for the checkout in DIR (e.g. a `git worktree` of an older commit)",
+    )
     args = ap.parse_args(argv)
     sc = tiny()
     print(f"{os.cpu_count()} CPUs, load average {_load()}")
@@ -234,7 +274,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\ntiny scene ({api.plan(sc).n_macro} macro steps), whole api.run (medians of {args.repeat})")
     in_process(sc, args.repeat)
     if not args.no_cli:
-        cli(args.repeat)
+        trees = {"this": str(Path(master.__file__).resolve().parent.parent)}  # the tree this process runs
+        if args.against:
+            trees["against"] = str(Path(args.against).resolve())
+        cli(args.repeat, trees)
     serial_pieces(sc, args.repeat)
     return 0
 
