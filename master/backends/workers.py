@@ -238,8 +238,9 @@ class WorkerBackend:
             for pc in self.plan.components
         }
         row_bytes = 8 * len(self.plan.columns) + native.STRING_SLOT * len(text_columns(self.plan))
-        self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
-        self.ring_rows = min(self.ring_rows, self.plan.n_macro + 1)  # a short run: its rows, no more to map
+        # a short run maps no more than its rows: the start's and at most one per macro step (record_due)
+        rows = min(RING_BYTES // row_bytes, self.plan.n_macro + 1)
+        self.ring_rows = min(max(rows, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER
         self.memory["stopper"][:, 0] = native.NEVER
