@@ -57,7 +57,12 @@ setup(
                 "fmus/solvers/lu.c",
                 "fmus/solvers/events.c",
             ],
-            depends=["master/runtime/kernel.h", "fmus/solvers/solvers.h", "fmus/fmi/model.h"],
+            depends=[
+                "master/runtime/kernel.h",
+                "master/runtime/scheduled.c",
+                "fmus/solvers/solvers.h",
+                "fmus/fmi/model.h",
+            ],
             include_dirs=["fmus/solvers", "fmus/fmi"],
             extra_compile_args=["-std=c99", "-ffp-contract=off", "-Wall", "-Wextra"],
             libraries=["m"],

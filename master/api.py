@@ -20,6 +20,7 @@ from master.backends.driver import execute, interruption, stop_signals
 from master.description import (
     CO_SIMULATION,
     MODEL_EXCHANGE,
+    SCHEDULED_EXECUTION,
     defects,
     interfaces,
     runs_as_model_exchange,
@@ -170,7 +171,9 @@ def plan(sc: Scenario) -> Plan:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
         variables[c.name] = variables_of(md)
         kind = MODEL_EXCHANGE if runs_as_model_exchange(md, c.model_exchange is not None) else CO_SIMULATION
-        caps[c.name] = interfaces(md).get(kind)  # the interface it is instantiated for (none: `check` says)
+        kind = SCHEDULED_EXECUTION if c.scheduled else kind
+        # the interface it is instantiated for (none: `check` says)
+        caps[c.name] = interfaces(md, Path(c.fmu_path)).get(kind)
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
         raise ScenarioError(problems)
@@ -439,6 +442,10 @@ def fmu_info(path: Path) -> str:
             f"states, {md.numberOfEventIndicators} event indicators, "
             f"canGetAndSetFMUstate={me.canGetAndSetFMUstate}"
         )
+    se = interfaces(md, Path(path)).get(SCHEDULED_EXECUTION)
+    if se is not None:  # the master activates its partitions (master.clocks)
+        clocks = ", ".join(f"{c.name} ({c.causality}, {c.interval_variability})" for c in se.clocks)
+        lines.append(f"  Scheduled Execution: clocks {clocks or 'none'}")
     lines += [f"  read all the same, as peer masters do: {d}" for d in defects(path)]
     lines.append(f"  {'name':<24} {'causality':<20} {'variability':<12} {'type':<12} {'start':<12} unit")
     for v in variables_of(md).values():

@@ -24,6 +24,7 @@ from fmpy.model_description import ModelDescription, Unknown, ValidationError, r
 from fmpy.validation import validate_model_description
 
 from master.archives import damaged
+from master.clocks import ClockVariable, read_clocks
 
 # -- FMI types --------------------------------------------------------------------------------------
 REAL_TYPES = ("Real", "Float64", "Float32")
@@ -103,6 +104,14 @@ FMI_FUNCTIONS = {
     "enter_event_mode": (None, "fmi2EnterEventMode", "fmi3EnterEventMode"),
     "update_discrete_states": (None, "fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
     "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
+}
+
+
+# the kernel's slots of a Scheduled Execution component (kernel.h: mk_scheduled) -> FMI 3 function
+SCHEDULED_FUNCTIONS = {
+    "activate_model_partition": "fmi3ActivateModelPartition",
+    "get_clock": "fmi3GetClock",
+    "get_interval": "fmi3GetIntervalDecimal",
 }
 
 
@@ -231,6 +240,7 @@ def lookup(variables: Mapping[str, Any], name: str) -> tuple[Any, int | None] | 
 # -- capabilities and dependencies ------------------------------------------------------------------
 CO_SIMULATION = "CoSimulation"
 MODEL_EXCHANGE = "ModelExchange"
+SCHEDULED_EXECUTION = "ScheduledExecution"  # FMI 3: the master activates its partitions (master.clocks)
 
 
 @dataclass(frozen=True)
@@ -251,6 +261,8 @@ class Capability:
     event_indicators: int = 0  # Model Exchange: numberOfEventIndicators (watched by the kernel: state events)
     model_identifier: str = ""
     completed_integrator_step: bool = False  # Model Exchange: needsCompletedIntegratorStep
+    scheduled: bool = False  # the Scheduled Execution interface (master.clocks)
+    clocks: tuple[ClockVariable, ...] = ()  # Scheduled Execution: its Clock variables
 
     def depends(self, output: str, inputs: dict[str, Variable]) -> frozenset[str]:
         """The inputs `output` depends on directly (no table: all of `inputs`)."""
@@ -280,15 +292,29 @@ def feedthrough_outputs(md: ModelDescription) -> set[str]:
     return {o for o, inputs in depends.items() if inputs}
 
 
-def interfaces(md: ModelDescription) -> dict[str, Capability]:
-    """The FMU's interfaces (CO_SIMULATION, MODEL_EXCHANGE: those it has) with their flags."""
+def interfaces(md: ModelDescription, path: Path | None = None) -> dict[str, Capability]:
+    """The FMU's interfaces (CO_SIMULATION, MODEL_EXCHANGE, SCHEDULED_EXECUTION: those it has) with
+    their flags; a Scheduled Execution interface with the clocks of the FMU at `path`."""
     depends, assumed = output_dependencies(md)
     out = {}
+    se = md.scheduledExecution
+    if se is not None:  # outputs change at activations only: none depends on inputs between them
+        out[SCHEDULED_EXECUTION] = Capability(
+            fmi_version=md.fmiVersion,
+            can_get_set_state=bool(se.canGetAndSetFMUstate),
+            once_per_process=bool(se.canBeInstantiatedOnlyOncePerProcess),
+            needs_execution_tool=bool(se.needsExecutionTool),
+            dependencies={v.name: frozenset() for v in md.modelVariables if v.causality == "output"},
+            model_identifier=se.modelIdentifier or "",
+            scheduled=True,
+            clocks=read_clocks(path) if path is not None else (),
+        )
     for name, kind in ((CO_SIMULATION, md.coSimulation), (MODEL_EXCHANGE, md.modelExchange)):
         if kind is None:
             continue
         out[name] = Capability(
-            can_interpolate_inputs=bool(getattr(kind, "canInterpolateInputs", False)),
+            can_interpolate_inputs=bool(getattr(kind, "canInterpolateInputs", False))
+            or (name == CO_SIMULATION and bool(intermediate_inputs(md))),
             fmi_version=md.fmiVersion,
             can_get_set_state=bool(kind.canGetAndSetFMUstate),
             once_per_process=bool(kind.canBeInstantiatedOnlyOncePerProcess),
@@ -302,6 +328,21 @@ def interfaces(md: ModelDescription) -> dict[str, Capability]:
             completed_integrator_step=name == MODEL_EXCHANGE and bool(kind.needsCompletedIntegratorStep),
         )
     return out
+
+
+def intermediate_inputs(md: ModelDescription) -> list[str]:
+    """The inputs of an FMI 3 Co-Simulation FMU that providesIntermediateUpdate which the master sets
+    inside doStep from its intermediate-update callback (the kernel's: their input polynomials at the
+    time the FMU asks, what FMI 2 FMUs get as input derivatives): the scalar Float64 inputs declared
+    intermediateUpdate="true". Where there is one, the FMU can interpolate its inputs."""
+    cs = md.coSimulation
+    if not md.fmiVersion.startswith("3.") or cs is None or not cs.providesIntermediateUpdate:
+        return []
+    return [
+        v.name
+        for v in md.modelVariables
+        if v.causality == "input" and v.type == "Float64" and v.intermediateUpdate and not v.dimensions
+    ]
 
 
 # -- the description of one FMU file ----------------------------------------------------------------
@@ -328,6 +369,10 @@ class Description:
     @property
     def model_exchange(self) -> Capability | None:
         return self.interfaces.get(MODEL_EXCHANGE)
+
+    @property
+    def scheduled_execution(self) -> Capability | None:
+        return self.interfaces.get(SCHEDULED_EXECUTION)
 
     @property
     def integrable(self) -> bool:
@@ -372,7 +417,7 @@ def _read(path: Path, _mtime_ns: int, _size: int) -> Description:
         fmi_version=md.fmiVersion,
         variables=variables_of(md),
         feedthrough=depends,
-        interfaces=interfaces(md),
+        interfaces=interfaces(md, path),
         sizes={k: tuple(v) for k, v in sizes.items()},
         unsupported=unsupported(md, path),
         defects=defects(path),
@@ -389,8 +434,11 @@ def unsupported(md: ModelDescription, path: Path) -> str | None:
         return (
             f"FMI {md.fmiVersion} is not supported: the master runs FMI 1.0, 2.0 and 3.x co-simulation FMUs"
         )
-    if md.coSimulation is None and (md.modelExchange is None or md.fmiVersion == "1.0"):
-        return f"model '{md.modelName}' has no co-simulation interface (nor one of Model Exchange 2.0 or 3.0)"
+    if md.coSimulation is None and (md.modelExchange is None or md.fmiVersion == "1.0") and not scheduled(md):
+        return (
+            f"model '{md.modelName}' has no co-simulation interface (nor one of Model Exchange 2.0 or 3.0, "
+            "nor Scheduled Execution)"
+        )
     has = supported_platforms(str(path))
     if platform not in has and platform_tuple not in has:
         return f"no binary for this platform ({platform}); the FMU has: {', '.join(has) or 'none'}"
@@ -401,7 +449,18 @@ def runs_as_model_exchange(md: ModelDescription, asked: bool = False) -> bool:
     """Whether the master integrates an FMU of description `md` itself, as a Model Exchange
     component: asked for (a component's modelExchange setting), or the FMU has no Co-Simulation
     interface."""
-    return asked or md.coSimulation is None
+    return asked or (md.coSimulation is None and md.modelExchange is not None)
+
+
+def scheduled(md: ModelDescription) -> bool:
+    """Whether the FMU has a Scheduled Execution interface (FMI 3)."""
+    return getattr(md, "scheduledExecution", None) is not None
+
+
+def runs_as_scheduled(md: ModelDescription, asked: bool = False) -> bool:
+    """Whether the master runs an FMU of description `md` as a Scheduled Execution component
+    (master.clocks): asked for (SSP implementation="ScheduledExecution"), or its only interface."""
+    return scheduled(md) and (asked or (md.coSimulation is None and md.modelExchange is None))
 
 
 # -- reading modelDescription.xml -------------------------------------------------------------------
@@ -467,7 +526,20 @@ def _parse(path: Path, _mtime_ns: int, _size: int) -> tuple[ModelDescription, tu
     md, found = _checked(path)
     if md.fmiVersion == "1.0":
         _fmi1_terms(path, md)
+    elif md.fmiVersion.startswith("3."):
+        _intermediate_update(path, md)
     return md, found
+
+
+def _intermediate_update(path: Path, md: ModelDescription) -> None:
+    """The FMI 3 variables' intermediateUpdate attribute, which fmpy does not read."""
+    from lxml import etree
+
+    with zipfile.ZipFile(path) as zf:
+        root = etree.fromstring(zf.read("modelDescription.xml"))
+    marked = {e.get("name") for e in root.iterfind("ModelVariables/*[@intermediateUpdate='true']")}
+    for v in md.modelVariables:
+        v.intermediateUpdate = v.name in marked
 
 
 # FMI 1.0 Co-Simulation capabilities that fmpy does not read -> how to read each

@@ -28,9 +28,11 @@ from master.description import (
     feedthrough_outputs,
     fmi_function,
     hex_bytes,
+    intermediate_inputs,
     lookup,
     parse,
     runs_as_model_exchange,
+    runs_as_scheduled,
     typed,
     unsupported,
     variables_of,
@@ -229,6 +231,8 @@ class Fmu:
         instance_name: str,
         workdir: Path | None = None,
         model_exchange: bool = False,
+        intermediate_update: bool = False,
+        scheduled: bool = False,
         unpacked: Path | None = None,
     ):
         """unpacked: a folder where `path` is extracted already (`safe_extract`), shared with its
@@ -238,7 +242,9 @@ class Fmu:
         self.md = read_description(self.path)
         self.fmi = int(self.md.fmiVersion[0])  # 1, 2 or 3
         # instantiated for Model Exchange: the kernel integrates its states (kernel.h: mk_component.me)
-        self.model_exchange = runs_as_model_exchange(self.md, model_exchange)
+        # instantiated for Scheduled Execution: the kernel activates its partitions (master.clocks)
+        self.scheduled = runs_as_scheduled(self.md, scheduled)
+        self.model_exchange = not self.scheduled and runs_as_model_exchange(self.md, model_exchange)
         if self.model_exchange and (self.md.modelExchange is None or self.fmi == 1):
             raise FmuError(f"{instance_name}: {self.path.name} has no Model Exchange 2.0 or 3.0 interface")
         self.fmi3 = self.fmi == 3
@@ -252,6 +258,11 @@ class Fmu:
         self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
         self._log_key = id(self)  # the componentEnvironment by which the FMI 2 logger finds this instance
         _LOGGING[self._log_key] = self
+        # an FMI 3 FMU whose inputs are polynomials (interpolateInputs) and that asks for them inside
+        # doStep: the kernel answers its intermediate-update callback (`_instantiate_intermediate`)
+        asks = not self.model_exchange and bool(intermediate_inputs(self.md))
+        self.intermediate = None
+        self._ask = intermediate_update and asks
         try:
             if unpacked is None:
                 safe_extract(self.path, self.dir)
@@ -263,6 +274,7 @@ class Fmu:
     # -- loading ------------------------------------------------------------------------------
     def _load(self) -> None:
         kind = self.md.modelExchange if self.model_exchange else self.md.coSimulation
+        kind = self.md.scheduledExecution if self.scheduled else kind
         kw = dict(
             guid=self.md.instantiationToken if self.fmi3 else self.md.guid,
             modelIdentifier=kind.modelIdentifier,
@@ -271,10 +283,14 @@ class Fmu:
         )
         try:
             if self.fmi3:
-                from fmpy.fmi3 import FMU3Model, FMU3Slave
+                from fmpy.fmi3 import FMU3Model, FMU3ScheduledExecution, FMU3Slave
 
-                self.slave = _signatures_once(FMU3Model if self.model_exchange else FMU3Slave)(**kw)
-                self.slave.instantiate(logMessage=self._log3)
+                interface = FMU3ScheduledExecution if self.scheduled else FMU3Slave
+                self.slave = _signatures_once(FMU3Model if self.model_exchange else interface)(**kw)
+                if self._ask:
+                    self._instantiate_intermediate()
+                else:
+                    self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
                 self._load1(kw)
             else:
@@ -307,6 +323,36 @@ class Fmu:
             raise FmuError(self.describe(str(e))) from e
         except Exception as e:
             raise FmuError(f"{self.name}: cannot load {self.path.name}: {e}") from e
+
+    def _instantiate_intermediate(self) -> None:
+        """fmi3InstantiateCoSimulation as fmpy's instantiate() but with the kernel's intermediate-update
+        callback and an environment of its own (native.Intermediate, which fmpy cannot pass), filled
+        by the kernel's tables: the FMU asks the kernel for its inputs at its stage times, no Python."""
+        from fmpy.fmi3 import fmi3IntermediateUpdateCallback, fmi3LogMessageCallback, fmi3ValueReference
+
+        from master.runtime import native
+
+        s = self.slave
+        self.intermediate = native.Intermediate()
+        s.logMessage = fmi3LogMessageCallback(self._log3)  # kept from the garbage collector, as fmpy does
+        s.intermediateUpdate = fmi3IntermediateUpdateCallback(native.intermediate_update())
+        resources = str(Path(s.unzipDirectory) / "resources") + "/"
+        s.component = s.fmi3InstantiateCoSimulation(
+            self.name.encode("utf-8"),
+            s.guid.encode("utf-8"),
+            resources.encode("utf-8"),
+            False,
+            False,
+            False,
+            False,
+            (fmi3ValueReference * 0)(),
+            0,
+            ctypes.addressof(self.intermediate),
+            s.logMessage,
+            s.intermediateUpdate,
+        )
+        if not s.component:
+            raise FmuError(self.describe("fmi3InstantiateCoSimulation failed"))
 
     def _load1(self, kw: dict) -> None:
         """Instantiate an FMI 1.0 Co-Simulation slave, its log messages to `last_log`."""
@@ -388,7 +434,7 @@ class Fmu:
             self.raw_do_step = None if self.model_exchange else fn("fmi2DoStep")  # ME: the kernel integrates
             return
         get3, set3 = fn("fmi3GetFloat64"), fn("fmi3SetFloat64")
-        if self.model_exchange:
+        if self.model_exchange or self.scheduled:  # no doStep: the kernel integrates or activates
             self.raw_get_real = lambda handle, vrs, count, ptr: get3(handle, vrs, count, ptr, count)
             self.raw_set_real = lambda handle, vrs, count, ptr: set3(handle, vrs, count, ptr, count)
             self.raw_do_step = None

@@ -80,6 +80,8 @@ PLATFORM3 = "x86_64-linux"  # FMI 3.0 platform tuple
 FMI_VERSIONS = (1, 2, 3)
 # The layer's interface file of each FMI version; an FMU is built with its own one only.
 INTERFACE_FILES = {1: "fmi1.c", 2: "fmi2.c", 3: "fmi3.c"}
+# layer files of FMI 3.0 alone (Scheduled Execution): no FMI 1.0 or 2.0 build needs them
+FMI3_LAYER_FILES = ("clocks.c",)
 FMI_HEADERS = {
     1: ("fmi1Functions.h",),
     2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -87,7 +89,9 @@ FMI_HEADERS = {
 }
 
 # Types of the C tables (describe.c's names) that exist in FMI 3.0 only, and each type's storage.
-FMI3_ONLY_TYPES = ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64", "Binary")
+FMI3_ONLY_TYPES = (
+    "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64", "Binary", "Clock"
+)  # fmt: skip
 _STORAGE = {
     "Real": "Real",
     "Float32": "Real",
@@ -98,6 +102,7 @@ _STORAGE = {
     **{t: "Int64" for t in ("Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64")},
     "UInt64": "UInt64",
     "Binary": "Binary",
+    "Clock": "Integer",  # its tick or interval qualifier (model.h: T_CLOCK)
 }
 # FMI 3.0 element of each table type, and the value range of the integer ones.
 _FMI3_ELEMENT = {"Real": "Float64", "Integer": "Int32", "Solver": "Enumeration"}
@@ -156,6 +161,7 @@ def _c_sources(name: str, fmi: int | None = 2) -> list[Path]:
     """The C files compiled into the FMU of FMI version `fmi`: the layer with that version's
     interface file (None: with none, for describe.c), the solvers, the model."""
     skip = {"describe.c"} | {f for v, f in INTERFACE_FILES.items() if v != fmi}
+    skip |= set(FMI3_LAYER_FILES) if fmi in (1, 2) else set()
     layer = [p for p in sorted(FMI_DIR.glob("*.c")) if p.name not in skip]
     return layer + sorted(SOLVERS_DIR.glob("*.c")) + sorted(_model_dir(name).glob("*.c"))
 
@@ -244,7 +250,8 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
     problems: list[str] = []
     if desc["identifier"] != name:
         problems.append(f'MODEL.identifier is "{desc["identifier"]}" but the folder is "{name}"')
-    if len(variables) < 2 or variables[0]["name"] != "solver" or variables[1]["name"] != "internal_step":
+    common = [v["name"] for v in variables[:2]] == ["solver", "internal_step"]
+    if not common and not desc["clocks"]:  # a Scheduled Execution model has no solver
         problems.append("the table must start with COMMON_VARIABLES(...)")
     feature = _fmi3_feature(desc)
     if feature and not desc["fmi3_only"]:
@@ -361,9 +368,32 @@ def _check_fmi3_table(name: str, desc: dict[str, Any]) -> None:
             problems.append(f"{label}: the name is taken by FMI 3.0's independent variable")
         if v["variability"] == "continuous" and v["type"] not in ("Real", "Float32"):
             problems.append(f"{label}: a {v['type']} cannot be continuous in FMI 3.0 (use discrete)")
+    problems += _clock_problems(desc)
     if problems:
         where = FMUS_DIR / name / "model.c"
         raise FmuBuildError(f"{where}: invalid model table for FMI 3.0:\n  " + "\n  ".join(problems))
+
+
+PERIODIC_CLOCKS = ("constant", "fixed", "tunable")
+
+
+def _clock_problems(desc: dict[str, Any]) -> list[str]:
+    """A Scheduled Execution model's clocks (model.h: ModelDef.clocks): a ClockDef per Clock variable,
+    an interval for periodic ones, a real slot for countdown ones, a partition function."""
+    variables = desc["variables"]
+    declared = {c["vr"]: c for c in desc["clocks"]}
+    problems = []
+    for vr, v in enumerate(variables):
+        if (v["type"] == "Clock") != (vr in declared):
+            problems.append(f'variable {vr} "{v["name"]}": a Clock variable needs a ClockDef, and only it')
+    for c in desc["clocks"]:
+        if c["interval_variability"] in PERIODIC_CLOCKS and not c["interval"] > 0:
+            problems.append(f"clock {c['vr']}: a {c['interval_variability']} clock needs an interval > 0")
+        if c["interval_variability"] == "countdown" and not 0 <= c["interval_slot"] < desc["n_reals"]:
+            problems.append(f"clock {c['vr']}: a countdown clock needs a real slot for its interval")
+    if desc["clocks"] and not desc["has_activate"]:
+        problems.append("a model with clocks needs MODEL.activate (its partitions)")
+    return problems
 
 
 # ------------------------------------------------------------------- units
@@ -728,6 +758,12 @@ def _start_text3(v: dict[str, Any]) -> str:
     return " ".join([one] * v["size"])
 
 
+def _intermediate_input(v: dict[str, Any]) -> bool:
+    """An input the importer may set inside doStep through the intermediate-update callback (FMI 3.0
+    intermediateUpdate="true"): a continuous Float64 input, fmus/fmi/instance.c intermediate_input."""
+    return v["causality"] == "input" and v["type"] == "Real" and v["variability"] == "continuous"
+
+
 def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     """FMI 3.0 Model Exchange and Co-Simulation modelDescription.xml.  Value references are the
     table positions (unique across all types); `time`, the independent variable, takes the next one."""
@@ -744,16 +780,27 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         variableNamingConvention="flat",
     )
     scalars_only = not any(v["dimensions"] for v in variables)
-    etree.SubElement(  # as FMI 2.0's
-        root,
-        "ModelExchange",
-        modelIdentifier=name,
-        needsCompletedIntegratorStep="true" if desc["has_step_event"] else "false",
-        canGetAndSetFMUState="true",
-        canSerializeFMUState="true",
-        providesDirectionalDerivatives="true" if scalars_only else "false",
-    )
-    if not desc["me_only"]:
+    intermediate = [vr for vr, v in enumerate(variables) if _intermediate_input(v)]
+    clocks = {c["vr"]: c for c in desc["clocks"]}
+    if clocks:  # Scheduled Execution alone: the master activates its partitions
+        etree.SubElement(
+            root,
+            "ScheduledExecution",
+            modelIdentifier=name,
+            canGetAndSetFMUState="true",
+            canSerializeFMUState="true",
+        )
+    if not clocks:
+        etree.SubElement(  # as FMI 2.0's
+            root,
+            "ModelExchange",
+            modelIdentifier=name,
+            needsCompletedIntegratorStep="true" if desc["has_step_event"] else "false",
+            canGetAndSetFMUState="true",
+            canSerializeFMUState="true",
+            providesDirectionalDerivatives="true" if scalars_only else "false",
+        )
+    if not desc["me_only"] and not clocks:
         etree.SubElement(
             root,
             "CoSimulation",
@@ -763,6 +810,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             # fmi3GetDirectionalDerivative takes scalar Float64 variables only
             providesDirectionalDerivatives="true" if scalars_only else "false",
             canHandleVariableCommunicationStepSize="true",
+            providesIntermediateUpdate="true" if intermediate else "false",
             canReturnEarlyAfterIntermediateUpdate="false",
             hasEventMode="false",
         )
@@ -794,7 +842,12 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
         if v["description"]:
             e.set("description", v["description"])
         e.set("causality", v["causality"])
+        if kind == "Clock":  # discrete, no start: its interval instead
+            _clock_attributes(e, clocks[vr], v["causality"])
+            continue
         e.set("variability", v["variability"])
+        if v["clocks"]:
+            e.set("clocks", v["clocks"])
         if v["initial"]:
             e.set("initial", v["initial"])
         has_start = v["effective_initial"] in ("exact", "approx") or v["causality"] == "input"
@@ -818,6 +871,8 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             e.set("start", _start_text3(v))
         if v["derivative_of"] != -1:
             e.set("derivative", str(v["derivative_of"]))
+        if vr in intermediate:
+            e.set("intermediateUpdate", "true")
         for extent in v["dimensions"]:
             etree.SubElement(e, "Dimension", start=str(extent))
         if has_start and kind in ("String", "Binary"):
@@ -844,8 +899,9 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     # As in FMI 2.0: initial unknowns without dependencies (= may depend on every known).
     for vr, v in enumerate(variables):
         calculated = v["effective_initial"] in ("approx", "calculated")
+        clocked = v["type"] == "Clock" or v["clocks"]  # known at its clocks' ticks, not at initialization
         if (
-            (v["causality"] == "output" and calculated)
+            (v["causality"] == "output" and calculated and not clocked)
             or v["causality"] == "calculatedParameter"
             or ((vr in state_vrs or vr in derivative_vrs) and calculated)
         ):
@@ -861,6 +917,15 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
 
     text = etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
     return text.decode("utf-8")
+
+
+def _clock_attributes(e: etree._Element, clock: dict[str, Any], causality: str) -> None:
+    """A Clock variable's FMI 3.0 attributes (model.h: ClockDef)."""
+    e.set("intervalVariability", clock["interval_variability"])
+    if clock["interval_variability"] in PERIODIC_CLOCKS:
+        e.set("intervalDecimal", _number(clock["interval"]))
+    if causality == "input":
+        e.set("priority", str(clock["priority"]))
 
 
 def build_description_xml(name: str) -> str:

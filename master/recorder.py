@@ -361,6 +361,8 @@ class RunSummary:
     coupling_errors: dict[str, dict[str, float]] = field(default_factory=dict)
     # per algebraic loop (its cycle): its counters, master.runtime.tables.loop_stats
     loops: dict[str, dict[str, float]] = field(default_factory=dict)
+    # Scheduled Execution components: "component.clock" -> activations (input clocks), ticks (output)
+    clock_ticks: dict[str, int] = field(default_factory=dict)
     # iterated macro steps (master.runtime.tables.iteration_counts): "sweeps" in all, "max" in one
     # macro step, "macro_steps" iterated; None: explicit coupling
     iterations: dict[str, int] | None = None
@@ -417,6 +419,9 @@ class RunSummary:
                 f"Jacobians, largest accepted change {s['worst']:.2g}"
             )
             lines.append(f"  algebraic loop {cycle}: {s['solves']} solves, {how}")
+        if self.clock_ticks:
+            ticks = ", ".join(f"{name} {n}" for name, n in self.clock_ticks.items())
+            lines.append(f"  clock activations and ticks: {ticks}")
         lines.extend(f"  note: {n}" for n in self.notes)
         if self.output:
             lines.append(f"  {self.rows} rows written to {self.output}")

@@ -14,7 +14,17 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-from master.description import Capability, Variable, element_names, lookup
+from master.clocks import Scheduled
+from master.clocks import schedule as schedule_clocks
+from master.description import (
+    CO_SIMULATION,
+    MODEL_EXCHANGE,
+    SCHEDULED_EXECUTION,
+    Capability,
+    Variable,
+    element_names,
+    lookup,
+)
 from master.scenario.fmuinfo import (
     CONTINUOUS,
     RECORDED,
@@ -152,6 +162,15 @@ class PlanComponent:
     # a Model Exchange component (the kernel integrates it, its inputs the polynomials at every
     # stage time: derivative_order as for an interpolating FMU); None: Co-Simulation
     model_exchange: ModelExchange | None = None
+    # a Scheduled Execution component: its clocks' activations on its grid (master.clocks); None: none
+    scheduled: Scheduled | None = None
+
+    @property
+    def interface(self) -> str:
+        """CO_SIMULATION, MODEL_EXCHANGE or SCHEDULED_EXECUTION: how the kernel runs it."""
+        if self.scheduled is not None:
+            return SCHEDULED_EXECUTION
+        return MODEL_EXCHANGE if self.model_exchange is not None else CO_SIMULATION
 
 
 @dataclass(frozen=True)
@@ -234,6 +253,9 @@ class Plan:
                     f", Model Exchange integrated by the master with {me.solver} ({substep} per "
                     "communication step), inputs as polynomials at every stage time"
                 )
+            if c.scheduled:
+                activated = c.scheduled.describe(c.step)
+                extra = f", Scheduled Execution: partitions activated by the master ({activated})"
             lines.append(f"  {c.name}: k = {c.step_ratio}, h = {c.step} s = {float(c.step):g} s{extra}")
         for lk in self.links:
             how = "interpolated" if lk.source_first else "extrapolated"
@@ -303,7 +325,7 @@ def build_plan(
         scenario=sc,
         components=tuple(comps[n] for n in stepping_order(sc)),
         links=tuple(links),
-        stimuli=tuple(sc.stimuli),
+        stimuli=tuple(s for s in sc.stimuli if not _ticks(s, comps)),
         n_macro=int(steps),
         record=record,
         record_types=types,
@@ -325,6 +347,12 @@ def build_plan(
         else (),
         loops=loops,
     )
+
+
+def _ticks(s: Stimulus, comps: dict[str, PlanComponent]) -> bool:
+    """Whether stimulus `s` gives a Scheduled Execution component's clock its ticks."""
+    se = comps[s.component].scheduled
+    return se is not None and any(c.name == s.variable for c in se.inputs)
 
 
 def stepping_order(sc: Scenario) -> list[str]:
@@ -352,7 +380,11 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
                 f"{c.name}: one doStep per macro step with its inputs as polynomials; its communication step "
                 f"{float(H / c.step_ratio):g} s is its internal step"
             )
-        comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0, me)
+        se = None
+        if c.scheduled:  # its input clocks' ticks; triggered ones from step stimuli (master.clocks)
+            ticks = {s.variable: (s.times, s.values) for s in sc.stimuli if s.component == c.name}
+            se = schedule_clocks(cap.clocks, start, H / k, ticks)
+        comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0, me, se)
     return comps
 
 

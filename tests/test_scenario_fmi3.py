@@ -89,7 +89,7 @@ def test_fmi3_output_without_dependencies_feeds_through_every_input(scene: Path)
 
 
 def test_interpolate_inputs_only_where_the_fmu_can(scene: Path):
-    # msd declares canInterpolateInputs; an FMI 3.0 co-simulation FMU has no such capability.
+    # msd declares canInterpolateInputs; this FMI 3.0 co-simulation FMU no intermediate update.
     everywhere = variant(
         scene,
         "interp_all",

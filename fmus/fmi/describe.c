@@ -46,7 +46,7 @@ static void json_ints(const int *a, int n) {
 int main(void) {
     static const char *const types[T_COUNT] = {"Real",  "Integer", "Boolean", "String", "Solver",
                                                "Float32", "Int8",  "UInt8",   "Int16",  "UInt16",
-                                               "UInt32",  "Int64", "UInt64",  "Binary"};
+                                               "UInt32",  "Int64", "UInt64",  "Binary", "Clock"};
     static const char *const causalities[] = {"parameter", "calculatedParameter", "input",
                                               "output",    "local",               "independent"};
     static const char *const variabilities[] = {"constant", "fixed", "tunable", "discrete", "continuous"};
@@ -83,6 +83,17 @@ int main(void) {
     printf("\"n_event_indicators\": %d, \"event_indicator_vrs\": ", m->n_event_indicators);
     json_ints(m->event_indicator_vrs, m->event_indicator_vrs ? m->n_event_indicators : 0);
     printf(", \"has_step_event\": %s,\n", m->step_event ? "true" : "false");
+    static const char *const clock_variabilities[] = {"constant", "fixed",     "tunable",
+                                                      "changing", "countdown", "triggered"};
+    printf("\"has_activate\": %s, \"clocks\": [", m->activate ? "true" : "false");
+    for (int k = 0; k < m->n_clocks; k++) {
+        const ClockDef *c = &m->clocks[k];
+        printf("%s{\"vr\": %d, \"interval_variability\": \"%s\", \"interval\": ", k ? ", " : "", c->vr,
+               clock_variabilities[c->variability]);
+        json_number(c->interval);
+        printf(", \"priority\": %d, \"interval_slot\": %d}", c->priority, c->interval_slot);
+    }
+    printf("],\n");
     printf("\"default_step_size\": ");
     json_number(m->default_step_size);
     printf(",\n\"variables\": [\n");
@@ -109,6 +120,8 @@ int main(void) {
         json_string(v->description);
         printf(", \"derivative_of\": %d, \"dependencies\": ", v->derivative_of);
         json_string(v->dependencies);
+        printf(", \"clocks\": ");
+        json_string(m->clocked ? m->clocked[i] : NULL);
         printf(", \"dimensions\": ");
         {
             int n = 0;

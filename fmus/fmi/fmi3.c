@@ -13,13 +13,19 @@
  *     and returns fmi3OK with *terminateSimulation = fmi3True; it never returns early and
  *     needs no event handling;
  *   - Step Mode is the state StepComplete of FMI 2.0: the same rules apply;
+ *   - intermediate update (providesIntermediateUpdate where the model has continuous Float64
+ *     inputs, declared intermediateUpdate="true"): given the callback, doStep asks the importer for
+ *     those inputs at each new stage time of its solver (step.c) and uses what it sets there;
  *   - Model Exchange as FMI 2.0's (the model's event indicators, event update and step events,
  *     nominals 1): after fmi3ExitInitializationMode the instance is in Event Mode,
  *     fmi3UpdateDiscreteStates runs the model's event update, fmi3EnterContinuousTimeMode, then
  *     the states, time and derivatives.
+ *   - Scheduled Execution for a model with clocks (clocks.c): fmi3ActivateModelPartition,
+ *     fmi3GetClock of output clocks, fmi3GetIntervalDecimal; its Clock Activation Mode is Step Mode.
  * Not supported (the function exists and returns fmi3Error, or NULL for an instance):
- * Scheduled Execution, Event Mode of Co-Simulation, clocks, Configuration Mode, intermediate
- * updates, output derivatives, adjoint derivatives, variable dependency queries.
+ * Event Mode of Co-Simulation, fmi3SetClock and the other interval and shift calls, Configuration
+ * Mode, intermediate variables to get, output derivatives, adjoint derivatives, variable dependency
+ * queries.
  */
 #include <stdio.h>
 #include <string.h>
@@ -54,6 +60,24 @@ fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, siz
     return (fmi3Status)set_debug_logging(inst, "fmi3SetDebugLogging", loggingOn, nCategories, categories);
 }
 
+/* providesIntermediateUpdate: the model has inputs to ask for (master/fmubuild.py declares it so). */
+static int has_intermediate_inputs(void) {
+    for (int vr = 0; vr < MODEL.n_variables; vr++)
+        if (intermediate_input(&MODEL.variables[vr])) return 1;
+    return 0;
+}
+
+/* step.c inputs_at: the importer sets the intermediate-update inputs of time t inside its callback
+ * (Intermediate Update Mode: fmi3SetFloat64 of those inputs only).  The FMU never returns early. */
+static void ask_intermediate_inputs(Instance *inst, double t) {
+    fmi3Boolean early = fmi3False;
+    fmi3Float64 early_time = t;
+    inst->in_intermediate_update = 1;
+    ((fmi3IntermediateUpdateCallback)inst->callback)(inst->env, t, fmi3True, fmi3False, fmi3False, fmi3False,
+                                                     &early, &early_time);
+    inst->in_intermediate_update = 0;
+}
+
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                          fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
@@ -68,10 +92,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     /* No Event Mode (hasEventMode="false"): eventModeUsed changes nothing; the FMU never
      * returns early and offers no intermediate variables. */
     (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
-    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables, (void)intermediateUpdate;
-    if (MODEL.me_only) { /* its description has no CoSimulation */
-        snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers Model Exchange only",
-                 MODEL.identifier);
+    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables;
+    if (MODEL.me_only || MODEL.n_clocks) { /* its description has no CoSimulation */
+        snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers %s only", MODEL.identifier,
+                 MODEL.n_clocks ? "Scheduled Execution" : "Model Exchange");
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
         return NULL;
     }
@@ -86,6 +110,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                         loggingOn);
     if (!inst && logMessage)
         logMessage(instanceEnvironment, fmi3Error, "logError", "fmi3InstantiateCoSimulation: out of memory");
+    if (inst && intermediateUpdate && has_intermediate_inputs()) {
+        inst->callback = (void (*)(void))intermediateUpdate;
+        inst->ask_inputs = ask_intermediate_inputs;
+    }
     return inst;
 }
 
@@ -118,12 +146,33 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                                                fmi3ClockUpdateCallback clockUpdate,
                                                fmi3LockPreemptionCallback lockPreemption,
                                                fmi3UnlockPreemptionCallback unlockPreemption) {
-    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
-    (void)clockUpdate, (void)lockPreemption, (void)unlockPreemption;
-    if (logMessage)
-        logMessage(instanceEnvironment, fmi3Error, "logError",
-                   "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");
-    return NULL;
+    const char *name = instanceName ? instanceName : "";
+    char message[512];
+    Instance *inst;
+    (void)resourcePath, (void)visible, (void)lockPreemption, (void)unlockPreemption; /* no preemption */
+    if (!MODEL.n_clocks) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logError",
+                       "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");
+        return NULL;
+    }
+    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
+        snprintf(message, sizeof message,
+                 "fmi3InstantiateScheduledExecution: instantiation token \"%s\" does not match %s's \"%s\"",
+                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+        return NULL;
+    }
+    inst = instance_new(name, KIND_CO_SIMULATION, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
+                        loggingOn);
+    if (!inst) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logError", "fmi3InstantiateScheduledExecution: out of memory");
+        return NULL;
+    }
+    inst->scheduled = 1; /* clocks.c */
+    inst->clock_update = (void (*)(void *))clockUpdate;
+    return inst;
 }
 
 void fmi3FreeInstance(fmi3Instance instance) { instance_free((Instance *)instance); }
@@ -335,8 +384,14 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]) {
     GUARD("fmi3GetClock", ANY_STATE);
-    (void)vr, (void)nvr, (void)values;
-    return unsupported(inst, "fmi3GetClock", "the FMU has no clocks");
+    if (!MODEL.n_clocks) return unsupported(inst, "fmi3GetClock", "the FMU has no clocks");
+    for (size_t i = 0; i < nvr; i++) { /* one at a time: fmi3Clock is a bool, the layer's an int */
+        int ticked = 0;
+        LayerStatus st = clock_get(inst, "fmi3GetClock", &vr[i], 1, &ticked);
+        if (st != LAYER_OK) return (fmi3Status)st;
+        values[i] = ticked ? fmi3ClockActive : fmi3ClockInactive;
+    }
+    return fmi3OK;
 }
 
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
@@ -442,8 +497,14 @@ fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                   fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]) {
     GUARD("fmi3GetIntervalDecimal", ANY_STATE);
-    (void)vr, (void)nvr, (void)intervals, (void)qualifiers;
-    return unsupported(inst, "fmi3GetIntervalDecimal", "the FMU has no clocks");
+    if (!MODEL.n_clocks) return unsupported(inst, "fmi3GetIntervalDecimal", "the FMU has no clocks");
+    for (size_t i = 0; i < nvr; i++) {
+        int qualifier = 0;
+        LayerStatus st = clock_intervals(inst, "fmi3GetIntervalDecimal", &vr[i], 1, &intervals[i], &qualifier);
+        if (st != LAYER_OK) return (fmi3Status)st;
+        qualifiers[i] = (fmi3IntervalQualifier)qualifier;
+    }
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
@@ -681,7 +742,8 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
                                       fmi3Float64 activationTime) {
-    (void)clockReference, (void)activationTime;
     GUARD("fmi3ActivateModelPartition", ANY_STATE);
-    return unsupported(inst, "fmi3ActivateModelPartition", "this FMU offers FMI 3.0 Co-Simulation only");
+    if (!MODEL.n_clocks)
+        return unsupported(inst, "fmi3ActivateModelPartition", "this FMU offers FMI 3.0 Co-Simulation only");
+    return (fmi3Status)clock_activate(inst, "fmi3ActivateModelPartition", clockReference, activationTime);
 }

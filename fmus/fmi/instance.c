@@ -185,6 +185,7 @@ void instance_reset(Instance *inst) {
             case T_FLOAT32: inst->reals[s] = (float)start; break;
             case T_INTEGER:
             case T_SOLVER: inst->integers[s] = (int)start; break;
+            case T_CLOCK: inst->integers[s] = 0; break; /* no tick; an interval not yet known */
             case T_BOOLEAN: inst->booleans[s] = start != 0.0; break;
             case T_STRING: model_set_string(inst, (int)s, v->start_string); break;
             case T_INT8:
@@ -229,7 +230,7 @@ const char *type_name(const Instance *inst, int type) {
     static const char *const names2[] = {"Real", "Integer", "Boolean", "String", "Enumeration"};
     static const char *const names3[T_COUNT] = {"Float64", "Int32",  "Boolean", "String", "Enumeration",
                                                 "Float32", "Int8",   "UInt8",   "Int16",  "UInt16",
-                                                "UInt32",  "Int64",  "UInt64",  "Binary"};
+                                                "UInt32",  "Int64",  "UInt64",  "Binary",  "Clock"};
     if (type < 0 || type >= T_COUNT) return "unknown";
     if (inst->fmi_version <= 2 && type <= T_SOLVER) return names2[type];
     return names3[type];
@@ -249,10 +250,19 @@ Initial effective_initial(const Variable *v) {
     return I_DEFAULT;
 }
 
+int intermediate_input(const Variable *v) {
+    return v->causality == C_INPUT && v->type == T_REAL && v->variability == V_CONTINUOUS;
+}
+
 /* Rules for SetXXX per state (FMI 2.0 section 3.2.3 / 4.2.4; FMI 3.0 Co-Simulation without
- * Event Mode keeps them: Step Mode is StepComplete). */
+ * Event Mode keeps them: Step Mode is StepComplete; inside the intermediate-update callback only
+ * the intermediate-update inputs). */
 const char *not_settable_reason(const Instance *inst, const Variable *v) {
     Initial init = effective_initial(v);
+    if (inst->in_intermediate_update)
+        return intermediate_input(v) ? NULL
+                                     : "only inputs with intermediateUpdate=\"true\" may be set in Intermediate "
+                                       "Update Mode";
     if (v->variability == V_CONSTANT) return "it is a constant";
     if (v->causality == C_INDEPENDENT) return "it is the independent variable";
     if (v->causality == C_CALCULATED_PARAMETER) return "it is a calculated parameter";

@@ -89,6 +89,8 @@ struct Instance {
     EmitFn emit;
     void (*logger)(void);    /* the importer's logger, cast back to its own type by emit */
     void *env;               /* the importer's environment pointer, passed to the logger */
+    int scheduled;           /* FMI 3.0 Scheduled Execution (clocks.c); its Clock Activation Mode is Step Mode */
+    void (*clock_update)(void *env); /* its importer's fmi3ClockUpdateCallback (NULL: none) */
     unsigned log_mask;       /* bit per category, see log.c */
     char model_error[512];   /* the model's last logError message, repeated in the layer's failure report */
     char error_suffix[512];  /* returned by model_error_suffix */
@@ -134,6 +136,16 @@ struct Instance {
     double rhs_t;
     double *rhs_x, *rhs_dx;  /* n_states */
     double *rhs_u;           /* n_real_inputs */
+
+    /* FMI 3.0 intermediate update (step.c inputs_at): ask_inputs, set by fmi3.c where the importer passed
+     * a callback, asks it for the intermediate-update inputs (intermediate_input) of time t inside doStep
+     * (NULL: inputs held, or the FMI 2.0 input polynomials); callback: the importer's, cast back by
+     * fmi3.c; asked_time: the time last asked in the running doStep (NAN: none yet); in_intermediate_update:
+     * inside the callback, where only those inputs may be set. Not state. */
+    void (*ask_inputs)(Instance *inst, double t);
+    void (*callback)(void);
+    double asked_time;
+    int in_intermediate_update;
 };
 
 /* log.c */
@@ -167,6 +179,9 @@ const Variable *variable_of(const Instance *inst, unsigned vr);
 size_t variable_size(const Instance *inst, unsigned vr);
 const char *type_name(const Instance *inst, int type);
 Initial effective_initial(const Variable *v);
+/* 1 for an input the importer may set in Intermediate Update Mode (FMI 3.0 intermediateUpdate="true"):
+ * a continuous Float64 input (master/fmubuild.py declares the same ones). */
+int intermediate_input(const Variable *v);
 /* NULL if `v` may be set in the current state, else the reason. */
 const char *not_settable_reason(const Instance *inst, const Variable *v);
 /* The variable behind vr if it exists and its type is in `types`; else logs and returns NULL. */
@@ -245,6 +260,14 @@ int event_update(Instance *inst, const char *function, int *needed, int *states_
 int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate);
 /* The model's indicators at the current time and states into z; 0 on success. */
 int event_indicators_now(Instance *inst, double *z);
+
+/* clocks.c: FMI 3.0 Scheduled Execution (ModelDef.clocks). The partition of input clock vr at time t;
+ * output clocks read (ticked: 1, each reset by the read); the intervals of clocks (qualifiers: FMI 3.0's
+ * fmi3IntervalQualifier, a countdown's reset to unchanged by the read). */
+LayerStatus clock_activate(Instance *inst, const char *function, unsigned vr, double t);
+LayerStatus clock_get(Instance *inst, const char *function, const unsigned vr[], size_t nvr, int ticked[]);
+LayerStatus clock_intervals(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
+                            double intervals[], int qualifiers[]);
 
 /* derivative.c: d(unknowns)/d(knowns) * seed for scalar Real variables. */
 LayerStatus directional_derivative(Instance *inst, const char *function, const unsigned unknown[],

@@ -60,6 +60,10 @@ const char *state_name(const Instance *inst, int state) {
 }
 
 int check_state(Instance *inst, const char *function, unsigned allowed_mask) {
+    if (inst->in_intermediate_update && strcmp(function, "fmi3SetFloat64") != 0) { /* inside the callback */
+        layer_log(inst, LOG_ERROR, "%s: not allowed in Intermediate Update Mode (fmi3SetFloat64 is)", function);
+        return 0;
+    }
     if (allowed_mask & MASK(inst->core->state)) return 1;
     layer_log(inst, LOG_ERROR, "%s: not allowed in state %s", function, state_name(inst, inst->core->state));
     return 0;

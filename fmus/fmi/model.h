@@ -39,6 +39,8 @@ typedef enum {
     T_INT64,
     T_UINT64,  /* uint64 slot (uint64_t) */
     T_BINARY,  /* binary slot: up to BINARY_CAPACITY bytes; start_string gives the start as hex digits */
+    T_CLOCK,   /* Scheduled Execution (ModelDef.clocks): integer slot, an output clock's tick (1: ticked since
+                  fmi3GetClock read it) or an input clock's interval qualifier (2: changed, a countdown) */
     T_COUNT
 } VarType;
 #define T_FLOAT64 T_REAL
@@ -93,6 +95,16 @@ typedef struct {
 } Variable;
 
 typedef struct Instance Instance;
+
+/* FMI 3.0 Scheduled Execution: the attributes of a Clock variable (T_CLOCK). */
+typedef enum { CLOCK_CONSTANT, CLOCK_FIXED, CLOCK_TUNABLE, CLOCK_CHANGING, CLOCK_COUNTDOWN, CLOCK_TRIGGERED } ClockVariability;
+typedef struct {
+    int vr;                       /* the Clock variable */
+    ClockVariability variability; /* intervalVariability */
+    double interval;              /* constant, fixed, tunable: intervalDecimal [s] */
+    int priority;                 /* input clocks: the smaller, the more urgent */
+    int interval_slot;            /* countdown: real slot of the interval it counts down; -1 none */
+} ClockDef;
 
 /* What an event update (ModelDef.update) reports: the layer presets changed = 0 and next_event_time =
  * INFINITY (no time event). */
@@ -170,6 +182,16 @@ typedef struct {
     ModelStatus (*update)(Instance *inst, double t, double *x, EventUpdate *ev);
     /* Step events: after each completed integrator step at (t, x); 1 asks for an event.  NULL: none. */
     int (*step_event)(Instance *inst, double t, const double *x);
+
+    /* FMI 3.0 Scheduled Execution (fmus/fmi/clocks.c): a model with clocks offers that interface alone
+     * (`.fmi3_only = 1`) and need not list COMMON_VARIABLES.  clocks: one per T_CLOCK variable;
+     * clocked: per variable its `clocks` attribute (value references, "" / NULL none), NULL: none;
+     * activate: the model partition of input clock clock_vr at time t, which may tick output clocks
+     * (model_tick) and count clocks down (model_count_down). */
+    const ClockDef *clocks;
+    int n_clocks;
+    const char *const *clocked;
+    ModelStatus (*activate)(Instance *inst, int clock_vr, double t);
 } ModelDef;
 
 extern const ModelDef MODEL;
@@ -189,6 +211,10 @@ int model_set_string(Instance *inst, int slot, const char *value);
 const unsigned char *model_binary(Instance *inst, int slot, size_t *size);
 /* Writes a Binary slot; returns 1 and writes nothing if size > BINARY_CAPACITY. */
 int model_set_binary(Instance *inst, int slot, const void *data, size_t size);
+/* Scheduled Execution: output clock clock_vr ticks now; countdown clock clock_vr ticks `interval` s
+ * from now.  Both tell the importer (its clockUpdate callback). */
+void model_tick(Instance *inst, int clock_vr);
+void model_count_down(Instance *inst, int clock_vr, double interval);
 /* Log through the FMI callback; category one of "logError", "logWarning", "logInfo", "logDebug". */
 void model_log(Instance *inst, const char *category, const char *fmt, ...)
 #if defined(__GNUC__)

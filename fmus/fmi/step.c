@@ -8,7 +8,11 @@
  * where u0 is the value the master set.  After the step the input slots get
  * back exactly u0 and all derivatives are cleared: the master sets new ones
  * for every step (no derivatives given = inputs held constant).  FMI 3.0 has no input
- * derivatives: its inputs are always held constant over a step.
+ * derivatives: where the importer passed an intermediateUpdate callback, the FMU asks it for
+ * its intermediate-update inputs at every new stage time s instead (intermediateVariableSetRequested,
+ * the importer sets them with fmi3SetFloat64 inside the callback; fmi3.c); without one its inputs are
+ * held constant over a step.  Either way the inputs get back the values the importer set before
+ * the step when it ends.
  */
 #include <math.h>
 #include <string.h>
@@ -26,9 +30,19 @@ static void apply_input_polynomials(Instance *inst, double t) {
     }
 }
 
+/* The inputs of time t in the input slots: the importer's (FMI 3.0 intermediate update, asked once per
+ * new time: the stages of a method at one time share them), else the FMI 2.0 input polynomials. */
+static void inputs_at(Instance *inst, double t) {
+    if (inst->ask_inputs) {
+        if (t != inst->asked_time) inst->ask_inputs(inst, t);
+        inst->asked_time = t;
+    } else if (inst->core->have_input_derivatives)
+        apply_input_polynomials(inst, t);
+}
+
 int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
     Instance *inst = ctx;
-    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inputs_at(inst, t);
     if (!inst->model->derivatives) return 0; /* no states: nothing to integrate */
     if (kept_rhs(inst, t, x, dx)) return 0;  /* evaluated already: the master read outputs there */
     ModelStatus st = inst->model->derivatives(inst, t, x, dx);
@@ -42,13 +56,13 @@ int rhs_with_inputs(void *ctx, double t, const double *x, double *dx) {
 
 int jac_with_inputs(void *ctx, double t, const double *x, double *J) {
     Instance *inst = ctx;
-    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inputs_at(inst, t);
     return inst->model->jacobian(inst, t, x, J) != MODEL_OK;
 }
 
 int indicators_with_inputs(void *ctx, double t, const double *x, double *z) {
     Instance *inst = ctx;
-    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inputs_at(inst, t);
     ModelStatus st = inst->model->event_indicators(inst, t, x, z);
     if (st == MODEL_FATAL) inst->core->fatal = 1;
     return st != MODEL_OK;
@@ -56,7 +70,7 @@ int indicators_with_inputs(void *ctx, double t, const double *x, double *z) {
 
 int completed_in_step(void *ctx, double t, const double *x, int *event, int *stop) {
     Instance *inst = ctx;
-    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inputs_at(inst, t);
     *event = inst->model->step_event(inst, t, x) != 0;
     *stop = 0;
     return 0;
@@ -67,7 +81,7 @@ int completed_in_step(void *ctx, double t, const double *x, int *event, int *sto
 int event_in_step(void *ctx, double t, double *x, double *next_time, int *stop) {
     Instance *inst = ctx;
     int changed = 0;
-    if (inst->core->have_input_derivatives) apply_input_polynomials(inst, t);
+    inputs_at(inst, t);
     inst->core->time = t;
     scatter_states(inst, x);
     mark_dirty(inst);
@@ -119,6 +133,7 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
     for (int i = 0; i < inst->n_real_inputs; i++)
         inst->input_values[i] = inst->reals[inst->real_input_slot[i]];
     inst->comm_point = t;
+    inst->asked_time = NAN;
     gather_states(inst, inst->x);
     if (n > 0 || m->update) { /* substep j from t + j h (from the integer j: no drift), events on the way */
         const OdeProblem problem = {kind,

@@ -126,8 +126,14 @@ class Unpacked:
 def open_fmu(sc: Scenario, comp: Component, unpacked: Unpacked | None = None) -> Fmu:
     """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode;
     from the files of `unpacked` where given (else extracted for this instance alone)."""
-    folder = unpacked(comp.fmu_path) if unpacked is not None else None
-    fmu = Fmu(comp.fmu_path, comp.name, model_exchange=comp.model_exchange is not None, unpacked=folder)
+    fmu = Fmu(
+        comp.fmu_path,
+        comp.name,
+        model_exchange=comp.model_exchange is not None,
+        intermediate_update=comp.interpolate_inputs,
+        scheduled=comp.scheduled,
+        unpacked=unpacked(comp.fmu_path) if unpacked is not None else None,
+    )
     try:
         fmu.set_values(dict(comp.parameters))
         fmu.enter_initialization(float(sc.start_time), float(sc.stop_time))

@@ -19,6 +19,7 @@ from master.recorder import Recorder
 from master.runtime.tables import (
     CompiledPlan,
     Memory,
+    clock_ticks,
     coupling_errors,
     iteration_counts,
     layout,
@@ -89,6 +90,10 @@ class InProcessBackend:
     def loop_stats(self) -> dict[str, dict[str, float]]:
         """The counters of each algebraic loop (`loop_stats`)."""
         return loop_stats(self.plan, self.compiled.memory) if self.compiled is not None else {}
+
+    def clock_ticks(self) -> dict[str, int]:
+        """Activations and ticks of Scheduled Execution components' clocks (`clock_ticks`)."""
+        return clock_ticks(self.plan, self.compiled.memory) if self.compiled is not None else {}
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

@@ -40,6 +40,7 @@ from master.runtime.tables import (
     Cancelled,
     CompiledPlan,
     Memory,
+    clock_ticks,
     counter,
     coupling_errors,
     iteration_counts,
@@ -428,6 +429,10 @@ class WorkerBackend:
     def loop_stats(self) -> dict[str, dict[str, float]]:
         """The counters of each algebraic loop (`loop_stats`)."""
         return loop_stats(self.plan, self.memory) if self.memory is not None else {}
+
+    def clock_ticks(self) -> dict[str, int]:
+        """Activations and ticks of Scheduled Execution components' clocks (`clock_ticks`)."""
+        return clock_ticks(self.plan, self.memory) if self.memory is not None else {}
 
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""

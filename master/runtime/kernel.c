@@ -82,6 +82,8 @@ void mk_layout(int64_t *sizes) {
     sizes[9] = (int64_t)sizeof(mk_call);
     sizes[10] = (int64_t)sizeof(mk_transform);
     sizes[11] = (int64_t)sizeof(mk_loop);
+    sizes[12] = (int64_t)sizeof(mk_intermediate);
+    sizes[13] = (int64_t)sizeof(mk_scheduled);
 }
 
 void mk_constants(int64_t *values) {
@@ -600,6 +602,19 @@ static int do_step(const mk_component *c, double t, bool final, int *terminate) 
     return st;
 }
 
+/* do_step of a component whose FMU asks for its inputs inside the step (FMI 3 intermediate update):
+ * its environment pointed at the step's input blocks u and point t for the while; a failure of
+ * doStep (*call MK_CALL_DO_STEP) or else of a set inside it (MK_CALL_SET_REAL). */
+static int intermediate_step(mk_component *c, const double *u, double t, bool final, int *terminate,
+                             int32_t *call) {
+    mk_intermediate *iu = c->intermediate;
+    iu->component = c, iu->u = u, iu->t0 = t, iu->status = 0;
+    int st = do_step(c, t, final, terminate);
+    iu->u = NULL;
+    *call = st > STATUS_OK ? MK_CALL_DO_STEP : MK_CALL_SET_REAL;
+    return st > STATUS_OK ? st : iu->status;
+}
+
 /* A recorded value into its row's 8 bytes as `how` says (kernel.h: MK_STORE_*). */
 static void store(double *to, int32_t how, double value) {
     if (how == MK_STORE_INT64) {
@@ -855,6 +870,32 @@ static void mark_idle(mk_kernel *k) {
 static int get_directional_derivative(const mk_component *c, const uint32_t *unknowns, size_t n_unknowns,
                                       const uint32_t *known, const double *seed, double *out);
 
+/* Real input i of a step with input blocks u, dt after its communication point: its polynomial
+ * u0 + d1 dt + d2 dt^2 / 2 + d3 dt^3 / 6 in the arithmetic of an FMU that interpolates its inputs
+ * (fmus/fmi/step.c), so that every way of handing the polynomial over gives the same bits. */
+static double input_at(const mk_component *c, const double *u, int32_t i, double dt) {
+    const int32_t nd = c->n_blocks - c->n_values, n_in = c->n_in;
+    const double *d = u + (size_t)c->n_values * n_in;
+    double d1 = nd > 0 ? d[i] : 0.0, d2 = nd > 1 ? d[n_in + i] : 0.0, d3 = nd > 2 ? d[2 * n_in + i] : 0.0;
+    return u[i] + dt * (d1 + dt * (d2 / 2.0 + dt * d3 / 6.0));
+}
+
+/* -- FMI 3 intermediate update (kernel.h mk_intermediate) ------------------------------------------ */
+
+void mk_intermediate_update(void *environment, double time, bool set_requested, bool get_allowed,
+                            bool step_finished, bool can_return_early, bool *early_return_requested,
+                            double *early_return_time) {
+    mk_intermediate *iu = environment;
+    (void)get_allowed, (void)step_finished, (void)can_return_early, (void)early_return_time;
+    if (early_return_requested) *early_return_requested = false;
+    if (!iu || !iu->u || !set_requested || iu->n == 0) return; /* outside the kernel's doStep: held */
+    const mk_component *c = iu->component;
+    for (int32_t i = 0; i < iu->n; i++) iu->values[i] = input_at(c, iu->u, iu->slots[i], time - iu->t0);
+    int st = ((fmi3_set_float64 *)c->set_real)(c->instance, iu->vrs, (size_t)iu->n, iu->values, (size_t)iu->n);
+    if (st > iu->status) iu->status = st;
+    iu->calls++;
+}
+
 /* What the solver's right-hand side of an ME component needs: the communication step's input blocks
  * and point, and the failing call. */
 typedef struct {
@@ -870,13 +911,8 @@ typedef struct {
  * interpolates its inputs (fmus/fmi/step.c), set; held inputs stay as set_inputs left them. */
 static int me_set_inputs(me_context *m, double t) {
     mk_component *c = m->c;
-    const int32_t nd = c->n_blocks - c->n_values, n_in = c->n_in;
-    if (nd == 0 || c->n_in_real == 0) return STATUS_OK;
-    const double dt = t - m->t0, *d = m->u + (size_t)c->n_values * n_in;
-    for (int32_t i = 0; i < c->n_in_real; i++) {
-        double d1 = d[i], d2 = nd > 1 ? d[n_in + i] : 0.0, d3 = nd > 2 ? d[2 * n_in + i] : 0.0;
-        c->scratch[i] = m->u[i] + dt * (d1 + dt * (d2 / 2.0 + dt * d3 / 6.0));
-    }
+    if (c->n_blocks == c->n_values || c->n_in_real == 0) return STATUS_OK;
+    for (int32_t i = 0; i < c->n_in_real; i++) c->scratch[i] = input_at(c, m->u, i, t - m->t0);
     m->call = MK_CALL_SET_REAL;
     return set_real(c, c->in_vrs, c->n_in_real, c->scratch, c->n_in_real);
 }
@@ -1073,6 +1109,8 @@ static void me_history(mk_component *c, bool save) {
     else memcpy(c->me_memory, c->me_memory_saved, size), c->me_next_event = c->me_next_event_saved;
 }
 
+#include "scheduled.c" /* Scheduled Execution components: se_step, mk_scheduled_start */
+
 /* The `ratio` communication steps of component ci in macro step n, inputs from u. */
 static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     mk_component *c = &k->components[ci];
@@ -1081,6 +1119,11 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
     int64_t j = n * kc;
     for (int32_t m = 0; m < kc; m++, j++) {
         const double *u = c->u + (size_t)m * nb * n_in;
+        if (c->scheduled) { /* no doStep: its clocks' partitions activated at point j + 1 */
+            int32_t code = se_step(k, ci, u, m, j);
+            if (code != MK_DONE) return code;
+            continue;
+        }
         double t = point_time(c, j);
         int terminate = 0, st;
         int64_t t0 = now_ns();
@@ -1094,8 +1137,9 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_DERIVATIVES, st, j);
         if (c->me) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
-        } else if ((st = do_step(c, t, final, &terminate)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, MK_CALL_DO_STEP, st, j);
+        } else if ((st = c->intermediate ? intermediate_step(c, u, t, final, &terminate, &call)
+                                         : do_step(c, t, final, &terminate)) > STATUS_OK)
+            return fail(k, MK_FMI_ERROR, ci, c->intermediate ? call : MK_CALL_DO_STEP, st, j);
         if (terminate == 2) { /* the step was discarded: the run ends at this macro step's start */
             request_stop(k, ci, j - 1, n);
             return MK_STOPPED;

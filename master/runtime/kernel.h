@@ -14,6 +14,7 @@
 #ifndef MASTER_KERNEL_H
 #define MASTER_KERNEL_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 /* Value kinds of coupled signals and recorded values: Real (FMI 2 Real, FMI 3 Float64), Integer
@@ -54,6 +55,9 @@ enum {
     MK_NOT_SETTLED = 12,  /* iterated macro steps: a coupled signal still changed beyond the tolerance
                              after the most sweeps allowed (mk_error: the component, its output with
                              the largest change and that change, the sweeps in `integer`) */
+    MK_CLOCK = 13,        /* a Scheduled Execution FMU counted a clock down by an interval that is not
+                             a whole number of its communication steps (mk_error: the clock's index in
+                             `variable`, the interval in `value`) */
 };
 
 /* String and Binary connections: a coupled String or Binary output is read after each step whose
@@ -77,6 +81,8 @@ enum {
     /* Model Exchange events */
     MK_CALL_GET_EVENT_INDICATORS, MK_CALL_ENTER_EVENT_MODE, MK_CALL_UPDATE_DISCRETE_STATES,
     MK_CALL_ENTER_CONTINUOUS_TIME_MODE,
+    /* Scheduled Execution (mk_scheduled) */
+    MK_CALL_ACTIVATE_MODEL_PARTITION, MK_CALL_GET_CLOCK, MK_CALL_GET_INTERVAL,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -168,6 +174,58 @@ typedef struct {
 
 /* An FMI function of any signature (cast to its own type before the call). */
 typedef void (*mk_function)(void);
+
+/* FMI 3 intermediate update: the instanceEnvironment of an FMU that providesIntermediateUpdate and
+ * whose inputs are polynomials (interpolateInputs), passed with mk_intermediate_update at its
+ * instantiation (Python owns it). Where the FMU asks inside doStep (intermediateVariableSetRequested),
+ * the callback sets its n scalar Float64 inputs declared intermediateUpdate="true" (value references
+ * vrs, the component's Real input slots `slots`) to the step's input polynomials at the time asked, in
+ * the arithmetic of an FMI 2 FMU handed them as input derivatives (fmus/fmi/step.c), with one
+ * fmi3SetFloat64 into `values`; no allocation. The kernel points it at its component, the step's
+ * input blocks and communication point before each doStep, and clears u after it: outside the
+ * kernel's doStep the callback sets nothing (inputs held). status: the worst status of those calls
+ * (the callback returns none: the kernel checks it after the step); calls counts them. */
+typedef struct {
+    const void *component; /* the mk_component */
+    const double *u;
+    double t0;
+    int32_t n;
+    const int32_t *slots;
+    const uint32_t *vrs;
+    double *values;
+    int32_t status;
+    int64_t calls;
+} mk_intermediate;
+
+/* A Scheduled Execution component (master/clocks.py): no doStep; in each communication step, from
+ * point j to j + 1 of its grid, its inputs (those at t_{j+1}) are set, the partitions of its input
+ * clocks that tick at point j + 1 activated with fmi3ActivateModelPartition(clock, t_{j+1}), its
+ * outputs read into sample j + 1 (sample-and-hold at activations); point 0 at the start time, after
+ * initialisation (mk_scheduled_start). Input clocks in activation order (priority), each activated at
+ * most once per point, the highest-priority one due first after every activation: a periodic one
+ * (MK_TICK_PERIODIC) at points phase + i every, a triggered one at its listed points, a countdown one
+ * (MK_TICK_COUNTDOWN) at the point the FMU's fmi3GetIntervalDecimal announced after an activation
+ * (due: -1 none). Output clocks are read with fmi3GetClock after each point's activations and their
+ * ticks counted. */
+enum { MK_TICK_PERIODIC = 0, MK_TICK_COUNTDOWN = 1, MK_TICK_TRIGGERED = 2 };
+#define MK_MAX_CLOCKS 64 /* input clocks of one component */
+
+typedef struct {
+    int32_t n_clocks;
+    const uint32_t *vrs;   /* [n_clocks] */
+    const int32_t *tick;   /* [n_clocks]: MK_TICK_* */
+    const int64_t *every;  /* [n_clocks] */
+    const int64_t *phase;  /* [n_clocks] */
+    const int64_t *first;  /* [n_clocks + 1]: a triggered clock's points: points[first[i] .. first[i + 1]) */
+    const int64_t *points; /* ascending */
+    int64_t *due;          /* [n_clocks] */
+    int64_t *activations;  /* [n_clocks]: counted */
+    int32_t n_out_clocks;
+    const uint32_t *out_vrs; /* [n_out_clocks] */
+    int64_t *out_ticks;      /* [n_out_clocks]: counted */
+    mk_function activate_model_partition, get_clock, get_interval; /* fmi3ActivateModelPartition, fmi3GetClock,
+                                                                      fmi3GetIntervalDecimal */
+} mk_scheduled;
 
 /* One FMU instance and its place in the plan. Pointers stay owned by Python. */
 typedef struct {
@@ -299,6 +357,10 @@ typedef struct {
      * there) and each communication step begins with the event iteration (an input event) and
      * continuous-time mode; the history restarts only where the states changed. */
     int32_t me_input_events;
+    /* FMI 3 intermediate update (NULL: none): the instance's environment, answered by
+     * mk_intermediate_update */
+    mk_intermediate *intermediate;
+    mk_scheduled *scheduled; /* NULL: none (a Co-Simulation or Model Exchange component) */
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the
@@ -480,9 +542,16 @@ void mk_constants(int64_t *values);
 int32_t mk_initial_sweep(mk_kernel *k, int32_t c);
 /* Record the row after macro step n (n = -1: the start time) into the results ring. */
 int32_t mk_record_row(mk_kernel *k, int64_t n);
+/* A Scheduled Execution component's activations at the start time (point 0), after initialisation,
+ * its outputs read into sample 0. Returns an mk code. */
+int32_t mk_scheduled_start(mk_kernel *k, int32_t c);
 /* Step macro steps n_from .. n_to - 1 (fewer on a return other than MK_DONE); *n_next: the first
  * macro step not done. budget_s > 0: return MK_YIELD once that much wall time has passed. */
 int32_t mk_run(mk_kernel *k, int64_t n_from, int64_t n_to, double budget_s, int64_t *n_next);
+/* fmi3IntermediateUpdateCallback of FMUs with an mk_intermediate environment (see there). */
+void mk_intermediate_update(void *environment, double time, bool set_requested, bool get_allowed,
+                            bool step_finished, bool can_return_early, bool *early_return_requested,
+                            double *early_return_time);
 /* Set a counter and wake its waiters (the supervisor draining the results ring). */
 void mk_publish(mk_counter *c, int64_t value);
 /* Raise the cancel flag and wake every waiter (a supervisor stopping the run). */

@@ -24,6 +24,7 @@ from master.solvers import SOLVERS
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernel.c"
 HEADER = HERE / "kernel.h"
+SCHEDULED = HERE / "scheduled.c"  # included by kernel.c
 # a source checkout (pyproject.toml beside the package): rebuilt when stale; an installed package
 # uses the library pip built (its kernel.c, shipped for reference, may be unpacked after it)
 CHECKOUT = (HERE.parent.parent / "pyproject.toml").is_file()
@@ -49,7 +50,8 @@ INCLUDES = [FMUS / "solvers", FMUS / "fmi"]  # solvers.h, and model.h for Solver
     NOT_CONVERGED,
     EVENT,
     NOT_SETTLED,  # iterated macro steps: the sweeps did not settle (kernel.h)
-) = range(13)
+    CLOCK,  # a Scheduled Execution FMU counted a clock down off its grid (kernel.h)
+) = range(14)
 NEVER = 2**62  # stop_at while no FMU has ended the simulation
 CALLS = (
     "set_real",
@@ -82,6 +84,10 @@ CALLS = (
     "enter_event_mode",
     "update_discrete_states",
     "enter_continuous_time_mode",
+    # Scheduled Execution (kernel.h: mk_scheduled)
+    "activate_model_partition",
+    "get_clock",
+    "get_interval",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -201,6 +207,45 @@ class Stimulus(C.Structure):
     ]
 
 
+class Intermediate(C.Structure):
+    """kernel.h mk_intermediate: the environment of an FMU answered by the kernel's intermediate-update
+    callback (`intermediate_update`)."""
+
+    _fields_ = [
+        ("component", _p),
+        ("u", C.POINTER(_f64)),
+        ("t0", _f64),
+        ("n", _i32),
+        ("slots", C.POINTER(_i32)),
+        ("vrs", C.POINTER(_u32)),
+        ("values", C.POINTER(_f64)),
+        ("status", _i32),
+        ("calls", _i64),
+    ]
+
+
+class Scheduled(C.Structure):
+    """kernel.h mk_scheduled: a Scheduled Execution component's clocks (master.clocks)."""
+
+    _fields_ = [
+        ("n_clocks", _i32),
+        ("vrs", C.POINTER(_u32)),
+        ("tick", C.POINTER(_i32)),
+        ("every", C.POINTER(_i64)),
+        ("phase", C.POINTER(_i64)),
+        ("first", C.POINTER(_i64)),
+        ("points", C.POINTER(_i64)),
+        ("due", C.POINTER(_i64)),
+        ("activations", C.POINTER(_i64)),
+        ("n_out_clocks", _i32),
+        ("out_vrs", C.POINTER(_u32)),
+        ("out_ticks", C.POINTER(_i64)),
+        ("activate_model_partition", _p),
+        ("get_clock", _p),
+        ("get_interval", _p),
+    ]
+
+
 class Component(C.Structure):
     _fields_ = [
         ("fmi", _i32),
@@ -309,6 +354,8 @@ class Component(C.Structure):
         ("me_events", _p),
         ("me_event_count", C.POINTER(_i64)),
         ("me_input_events", _i32),
+        ("intermediate", C.POINTER(Intermediate)),
+        ("scheduled", C.POINTER(Scheduled)),
     ]
 
 
@@ -425,6 +472,7 @@ class Kernel(C.Structure):
 
 
 STRUCTS = (Link, Stimulus, Component, Record, Error, Pacing, Kernel, Counter, Shared, Call, Transform, Loop)
+STRUCTS += (Intermediate, Scheduled)  # mk_layout's order
 
 
 class KernelBuildError(RuntimeError):
@@ -469,7 +517,7 @@ def library() -> C.CDLL:
     path = _built()
     if CHECKOUT:  # a developer's edit of kernel.c must not run stale code
         solvers = [*SOLVER_SOURCES, FMUS / "solvers" / "solvers.h", FMUS / "fmi" / "model.h"]
-        sources = [p.stat().st_mtime for p in (SOURCE, HEADER, *solvers) if p.exists()]
+        sources = [p.stat().st_mtime for p in (SOURCE, HEADER, SCHEDULED, *solvers) if p.exists()]
         if path is None or (sources and max(sources) > path.stat().st_mtime):
             path = _compile()
     elif path is None:
@@ -489,6 +537,7 @@ def library() -> C.CDLL:
             raise KernelBuildError(f"{path.name}: {name} is {c_value} in C, {value} here")
     kp = C.POINTER(Kernel)
     lib.mk_initial_sweep.argtypes = [kp, _i32]
+    lib.mk_scheduled_start.argtypes = [kp, _i32]
     lib.mk_record_row.argtypes = [kp, _i64]
     lib.mk_run.argtypes = [kp, _i64, _i64, _f64, C.POINTER(_i64)]
     lib.mk_cancel.argtypes = [C.POINTER(Shared), _i32, _i32]
@@ -497,7 +546,7 @@ def library() -> C.CDLL:
     lib.mk_stop.restype = None
     lib.mk_publish.argtypes = [C.POINTER(Counter), _i64]
     lib.mk_publish.restype = None
-    for f in (lib.mk_initial_sweep, lib.mk_record_row, lib.mk_run):
+    for f in (lib.mk_initial_sweep, lib.mk_scheduled_start, lib.mk_record_row, lib.mk_run):
         f.restype = _i32
     lib.solver_work_new.argtypes = [C.c_int]  # a Model Exchange component's solver work space
     lib.solver_work_new.restype = _p
@@ -510,3 +559,8 @@ def library() -> C.CDLL:
     lib.solver_memory_size.argtypes = [C.c_int]
     lib.solver_memory_size.restype = C.c_size_t
     return lib
+
+
+def intermediate_update() -> int:
+    """The address of the kernel's fmi3IntermediateUpdateCallback (kernel.h mk_intermediate_update)."""
+    return C.cast(library().mk_intermediate_update, _p).value

@@ -25,8 +25,9 @@ from master.backends.component import (
     samples_read,
     string_output_names,
 )
+from master.clocks import TICK_PERIODIC, every_from_fmu
 from master.coupling import weights
-from master.description import FMI_FUNCTIONS, lookup
+from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, intermediate_inputs, lookup
 from master.fmu import Fmu, FmuError
 from master.runtime import native
 from master.scenario.fmuinfo import CONTINUOUS, TEXTS, recorded_as
@@ -182,7 +183,25 @@ def layout(
     out["fmu_time"] = ((nc, 8), "float64")
     out["loops"] = ((max(len(plan.loops), 1), 8), "int64")  # per loop its counters (kernel.h mk_loop)
     out["loop_worst"] = ((max(len(plan.loops), 1), 8), "float64")  # and its largest accepted residual
+    out["clock_ticks"] = ((max(len(clock_names(plan)), 1),), "int64")  # mk_scheduled's counts
     return out
+
+
+def clock_names(plan: Plan) -> list[str]:
+    """ "component.clock" of every Scheduled Execution component's input clocks, then its output
+    clocks (the kernel counts their activations and ticks in this order, mk_scheduled)."""
+    return [
+        f"{pc.name}.{c.name}"
+        for pc in plan.components
+        if pc.scheduled
+        for c in pc.scheduled.inputs + pc.scheduled.outputs
+    ]
+
+
+def clock_ticks(plan: Plan, memory: Memory) -> dict[str, int]:
+    """Per clock of a Scheduled Execution component ("component.clock"): its activations (an
+    input clock) or the ticks read (an output clock)."""
+    return {name: int(memory["clock_ticks"][i]) for i, name in enumerate(clock_names(plan))}
 
 
 class CompiledPlan:
@@ -214,6 +233,9 @@ class CompiledPlan:
         self._keep: list[object] = []  # every array and structure the kernel points into
         self.bound: dict[str, np.ndarray] = {}
         self.held: dict[str, np.ndarray] = {}  # per local component: which history columns are held signals
+        self.every: dict[
+            str, np.ndarray
+        ] = {}  # Scheduled Execution: its input clocks' periods (mk_scheduled)
         self.resampled, order = resampling(plan, outs)
         comps = (native.Component * len(self.names))()
         for i, pc in enumerate(plan.components):
@@ -340,7 +362,7 @@ class CompiledPlan:
         for name, kind in native.TYPED.items() if fmu.fmi3 else ():
             c.get_typed[kind] = _exported(fmu, f"fmi3Get{name}")
             c.set_typed[kind] = _exported(fmu, f"fmi3Set{name}")
-        for slot in ME_CALLS if fmu.model_exchange else ("do_step",):
+        for slot in ME_CALLS if fmu.model_exchange else () if fmu.scheduled else ("do_step",):
             _require(fmu, slot, pc.name)
         for slot in ("set_real", "get_real"):
             _require(fmu, slot, pc.name)
@@ -387,16 +409,19 @@ class CompiledPlan:
         # an output read at communication points or rows that depends on inputs: the step-end inputs
         # are set after each step (a coupled String or Binary, or a recorded output of any type, too)
         fed = any(variable(fmu, o).name in fmu.feedthrough for o in outputs_read(plan, out, pc.name))
-        c.feedthrough = int(bool(in_names) and fed)
+        # a Scheduled Execution component takes the inputs at its activations: the step-end block
+        c.feedthrough = int(bool(in_names) and (fed or pc.scheduled is not None))
         nv = 2 if c.feedthrough else 1
         blocks = [(0, 0), (1, 0)][:nv] + [(0, d) for d in range(1, pc.derivative_order + 1)]
         c.n_in, c.n_values, c.n_blocks = len(in_names), nv, len(blocks)
         c.in_vrs = _ptr(self._array(in_vrs, np.uint32), C.c_uint32)
         n_deriv_blocks = len(blocks) - nv
-        if n_deriv_blocks and c.set_derivatives is None and not fmu.model_exchange:
+        asks = fmu.intermediate is not None  # an FMI 3 FMU asks for its inputs inside doStep
+        if n_deriv_blocks and c.set_derivatives is None and not fmu.model_exchange and not asks:
             raise FmuError(f"{pc.name}: inputs as polynomials need fmi2SetRealInputDerivatives")
-        # discrete inputs are held: no derivatives; a Model Exchange component's polynomials are the kernel's
-        c.n_derivatives = 0 if fmu.model_exchange else n_deriv_blocks * c.n_in_real
+        # discrete inputs are held: no derivatives; a Model Exchange component's polynomials are the
+        # kernel's, and so are those of an FMU that asks for its inputs
+        c.n_derivatives = 0 if fmu.model_exchange or asks else n_deriv_blocks * c.n_in_real
         c.derivative_vrs = _ptr(self._array(in_vrs[: c.n_in_real] * n_deriv_blocks, np.uint32), C.c_uint32)
         orders = [d for _, d in blocks[nv:] for _ in range(c.n_in_real)]
         c.derivative_orders = _ptr(self._array(orders, np.int32), C.c_int32)
@@ -446,6 +471,50 @@ class CompiledPlan:
         c.scratch = _ptr(self._array(np.zeros(width), np.float64), C.c_double)
         if fmu.model_exchange:
             self._model_exchange(c, pc, fmu, in_names)
+        if asks:
+            self._intermediate(c, fmu, in_names[: c.n_in_real])
+        if pc.scheduled is not None:
+            self._scheduled(c, pc, fmu)
+
+    def _intermediate(self, c: native.Component, fmu: Fmu, real_inputs: list[str]) -> None:
+        """An FMU that asks for its inputs inside doStep (kernel.h mk_intermediate): which of its Real
+        inputs the kernel's callback sets, the FMU's intermediate-update ones (others are held)."""
+        asked = set(intermediate_inputs(fmu.md))
+        slots = [i for i, name in enumerate(real_inputs) if name in asked]
+        iu = fmu.intermediate
+        iu.n, iu.calls = len(slots), 0
+        iu.slots = _ptr(self._array(slots, np.int32), C.c_int32)
+        iu.vrs = _ptr(self._array([variable(fmu, real_inputs[i]).vr for i in slots], np.uint32), C.c_uint32)
+        iu.values = _ptr(self._array(np.zeros(len(slots)), np.float64), C.c_double)
+        c.intermediate = C.pointer(iu)
+
+    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
+        """A Scheduled Execution component's clock tables (kernel.h: mk_scheduled, master.clocks)."""
+        se = pc.scheduled
+        t = native.Scheduled()
+        ins = se.inputs
+        t.n_clocks = len(ins)
+        t.vrs = self._vrs([ck.vr for ck in ins])
+        t.tick = _ptr(self._array([ck.tick for ck in ins], np.int32), C.c_int32)
+        self.every[pc.name] = every = self._array([ck.every for ck in ins], np.int64)  # 0: from the FMU
+        t.every = _ptr(every, C.c_int64)
+        t.phase = _ptr(self._array([ck.phase for ck in ins], np.int64), C.c_int64)
+        first = np.cumsum([0] + [len(ck.points) for ck in ins])
+        t.first = _ptr(self._array(first, np.int64), C.c_int64)
+        t.points = _ptr(self._array([p for ck in ins for p in ck.points], np.int64), C.c_int64)
+        t.due = _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64)
+        first = clock_names(self.plan).index(f"{pc.name}.{ins[0].name}") if ins else 0  # in shared memory
+        t.activations = _ptr(self.memory["clock_ticks"][first:], C.c_int64)
+        t.n_out_clocks = len(se.outputs)
+        t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
+        t.out_ticks = _ptr(self.memory["clock_ticks"][first + len(ins) :], C.c_int64)
+        for slot, name in SCHEDULED_FUNCTIONS.items():
+            f = _exported(fmu, name)
+            if f is None:
+                raise FmuError(f"{pc.name}: {fmu.path.name} does not export {name}")
+            setattr(t, slot, f)
+        self._keep.append(t)
+        c.scheduled = C.pointer(t)
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
@@ -692,6 +761,10 @@ class CompiledPlan:
         except FmuError as e:
             t = float(self.plan.scenario.start_time)
             raise SimulationError(f"{e} at t={t}", name, t) from e
+        if fmu.scheduled:  # its partitions due at the start time (kernel.h: mk_scheduled_start)
+            self._intervals(name, fmu)
+            if self.lib.mk_scheduled_start(self.ref, self.names.index(name)) != native.DONE:
+                raise self.error(initial=True)
         if fmu.model_exchange:  # the time event its initial event iteration asked for
             c = self.components[self.names.index(name)]
             c.me_next_event = fmu.next_event_time
@@ -701,6 +774,28 @@ class CompiledPlan:
                 except FMICallException as e:
                     t = float(self.plan.scenario.start_time)
                     raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
+
+    def _intervals(self, name: str, fmu: Fmu) -> None:
+        """The periods of a Scheduled Execution component's fixed and tunable clocks whose description
+        gives no interval: fmi3GetIntervalDecimal after initialisation, on the component's grid."""
+        from fmpy.fmi3 import fmi3Float64, fmi3IntervalQualifier, fmi3ValueReference
+
+        pc = self.plan.component(name)
+        t = float(self.plan.scenario.start_time)
+        for i, clock in enumerate(pc.scheduled.inputs):
+            if clock.tick != TICK_PERIODIC or clock.every:
+                continue
+            interval, qualifier = fmi3Float64(), fmi3IntervalQualifier()
+            try:
+                fmu.slave.fmi3GetIntervalDecimal(
+                    fmu.slave.component, (fmi3ValueReference * 1)(clock.vr), 1, interval, qualifier
+                )
+            except FMICallException as e:
+                raise SimulationError(f"{fmu.describe(str(e))} at t={t}", name, t) from e
+            every, why = every_from_fmu(clock, interval.value, pc.step)
+            if every is None:
+                raise SimulationError(f"{name}: {why}", name, t)
+            self.every[name][i] = every
 
     def pace(self, factor: float, origin_ns: int, n_origin: int = 0) -> None:
         """Pace macro steps n_origin on: macro step n is due at CLOCK_MONOTONIC origin_ns (ns, as
@@ -832,6 +927,8 @@ class CompiledPlan:
                 t,
                 bad,
             )
+        if e.code == native.CLOCK or native.CALLS[e.call] in SCHEDULED_FUNCTIONS:
+            return self._clock_error(e, name, fmu, pc)
         step = f"in the step from t={t} to t={t1}"
         call = native.CALLS[e.call]
         if e.code == native.EVENT:
@@ -860,6 +957,22 @@ class CompiledPlan:
         if call in ("get_state", "set_state", "free_state") or initial:
             return SimulationError(f"{cause} at t={t}", name, t)
         return SimulationError(f"{cause} {step}", name, t)
+
+    def _clock_error(self, e, name: str, fmu: Fmu, pc: PlanComponent) -> SimulationError:
+        """A Scheduled Execution component's failure in its activations at point e.point (kernel.h:
+        mk_scheduled), or a clock counted down off its grid."""
+        t = pc.clock.time(e.point)
+        if e.code == native.CLOCK:
+            clock = pc.scheduled.inputs[e.variable].name
+            return SimulationError(
+                f"{name}: clock {clock} counted down by {e.value:g} s at t={t}, not a whole number of "
+                f"its communication steps ({float(pc.step):g} s)",
+                name,
+                t,
+            )
+        function = SCHEDULED_FUNCTIONS[native.CALLS[e.call]]
+        cause = FmuError(fmu.describe(str(FMICallException(function=function, status=e.status))))
+        return SimulationError(f"{cause} at t={t}", name, t)
 
 
 def _start_number(start: str | None) -> float:

@@ -13,6 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
+from master.clocks import scheduled_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -60,6 +61,7 @@ def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[P
     _stimuli(sc, infos, driven, at)
     _record(sc, infos, at)
     _model_exchange(sc, infos, at)
+    _scheduled(sc, infos, at)
     _iteration(sc, infos, at)
     return problems.items
 
@@ -70,6 +72,33 @@ def _model_exchange(sc: Scenario, infos: Infos, at: At) -> None:
             step = Fraction(sc.macro_step) / c.step_ratio
             for problem in model_exchange_problems(c.model_exchange, step, infos.get(c.name)):
                 at(f"component {c.name}", problem)
+
+
+def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
+    """Scheduled Execution components: an interface to instantiate, input clocks the master can
+    activate on the component's grid (master.clocks)."""
+    for c in sc.components:
+        info = infos.get(c.name)
+        if not c.scheduled or info is None or not _ratio_ok(c.step_ratio):
+            continue
+        se = info.scheduled_execution
+        if se is None:
+            at(f"component {c.name}", f"{info.path.name} has no Scheduled Execution interface")
+            continue
+        step = Fraction(sc.macro_step) / c.step_ratio
+        for problem in scheduled_problems(se.clocks, step):
+            at(f"component {c.name}", problem)
+
+
+def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:
+    """A step stimulus on a triggered input clock of a Scheduled Execution component: its ticks."""
+    comp = sc.component(s.component)
+    if _ratio_ok(comp.step_ratio):
+        step = Fraction(sc.macro_step) / comp.step_ratio
+        for problem in stimulus_problems(
+            clock, comp.scheduled, s.kind, s.times, Fraction(sc.start_time), step
+        ):
+            at(where, problem)
 
 
 def times(sc: Scenario) -> list[Problem]:
@@ -246,6 +275,14 @@ def _stimuli(sc: Scenario, infos: Infos, driven: dict[tuple[str, str], str], at:
         elif key in driven:
             at(where, f"{name} is driven by {driven[key]}: stimuli are for undriven inputs")
         driven[key] = where
+        if var.fmi_type == "Clock":
+            clocks = infos[s.component].scheduled_execution
+            clock = next(c for c in clocks.clocks if c.name == s.variable) if clocks else None
+            if clock is None:
+                at(where, f"{name} is a Clock: only a Scheduled Execution component's clocks tick")
+            else:
+                _clock_stimulus(sc, s, clock, where, at)
+            continue
         version = infos[s.component].fmi_version
         problem = stimulus_problem(var.fmi_type, version, s.kind, var.shape)
         if problem:

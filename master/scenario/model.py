@@ -29,6 +29,9 @@ class Component:
     # run as a Model Exchange FMU that the master integrates (None: Co-Simulation, unless the FMU has
     # no Co-Simulation interface: then ModelExchange())
     model_exchange: ModelExchange | None = None
+    # run as Scheduled Execution: the master activates its clocks' model partitions (master.clocks);
+    # asked for (implementation="ScheduledExecution") or the FMU's only interface
+    scheduled: bool = False
 
 
 @dataclass(frozen=True)

@@ -192,6 +192,7 @@ def _read(
             interpolate_inputs=setup.interpolate_inputs[c.name],
             group=setup.group.get(c.name),
             model_exchange=setup.model_exchange.get(c.name),
+            scheduled=c.name in setup.scheduled,
         )
         for c in ctx.comps.values()
         if c.info is not None

@@ -14,7 +14,8 @@ from fractions import Fraction
 
 from lxml import etree
 
-from master.description import FLOATS, Description, typed
+from master.clocks import scheduled_problems, stimulus_problems
+from master.description import FLOATS, SCHEDULED_EXECUTION, Description, typed
 from master.schedule import Clock
 from master.solvers import NUMBERS
 
@@ -47,6 +48,7 @@ class Settings:
     iteration: Iteration | None = None
     origins: dict[str, str] = field(default_factory=dict)  # setting -> where its value came from
     model_exchange: dict[str, ModelExchange] = field(default_factory=dict)  # components run as ME
+    scheduled: set[str] = field(default_factory=set)  # components run as Scheduled Execution
 
 
 def model_exchange_problems(me: ModelExchange, step: Fraction, info: Description | None) -> list[str]:
@@ -158,7 +160,7 @@ def read(
     # written (also of connections with problems of their own, resolved through system connectors)
     _connections(ctx, elem, s, set(ctx.driven) | ctx.ends)
     _record(ctx, elem, s)
-    _stimuli(ctx, elem, s)
+    _stimuli(ctx, elem, s, times[0] if times is not None else Fraction(0))
     _coupling_iterations(ctx, elem, s)
     _saved_states(ctx, elem, s)
     return s
@@ -293,7 +295,8 @@ def _components(ctx: Context, elem: etree._Element, s: Settings) -> None:
         if asked and comp.info is not None and not can:
             ctx.at(
                 ce,
-                f"interpolateInputs: {comp.info.path.name} cannot interpolate inputs (canInterpolateInputs)",
+                f"interpolateInputs: {comp.info.path.name} cannot interpolate inputs "
+                "(canInterpolateInputs; FMI 3: providesIntermediateUpdate, inputs intermediateUpdate)",
             )
         # The global default only applies where the FMU can; an explicit request must be honoured.
         s.interpolate_inputs[name] = bool(asked) if asked is not None else default_interp and can
@@ -317,6 +320,8 @@ def model_exchange(
     """Whether component `name` runs as Model Exchange (modelExchange="true" on its mm:Component
     `ce`, else implementation="ModelExchange" on its ssd:Component, else an FMU without a
     Co-Simulation interface), its solver and internalStep then in s.model_exchange."""
+    if scheduled_execution(ctx, s, name, info):
+        return False
     asked, where, said = _bool(attrs.get("modelExchange")), ce, 'modelExchange="false"'
     comp = ctx.comps[name].elem
     if asked is None and comp.get("implementation") in IMPLEMENTATIONS:
@@ -336,6 +341,25 @@ def model_exchange(
     s.model_exchange[name] = me
     if "solver" not in attrs and "internalStep" not in attrs:
         s.origins[f"{name} integration"] = DEFAULT_MODEL_EXCHANGE
+    return True
+
+
+def scheduled_execution(ctx: Context, s: Settings, name: str, info: Description | None) -> bool:
+    """Whether component `name` runs as Scheduled Execution (implementation="ScheduledExecution" on
+    its ssd:Component, or an FMU whose only interface that is): then in s.scheduled."""
+    comp = ctx.comps[name].elem
+    asked = comp.get("implementation") == SCHEDULED_EXECUTION
+    has = info is not None and info.scheduled_execution is not None
+    if asked and info is not None and not has:
+        why = f"{info.path.name} has no Scheduled Execution interface"
+        ctx.at(comp, f'implementation="{SCHEDULED_EXECUTION}": {why}')
+    only = has and info.co_simulation is None and info.model_exchange is None
+    if not (asked or only):
+        return False
+    s.scheduled.add(name)
+    step = s.macro_step / s.step_ratio[name]
+    for problem in scheduled_problems(info.scheduled_execution.clocks, step) if has else ():
+        ctx.at(comp, problem)
     return True
 
 
@@ -450,7 +474,25 @@ def _record(ctx: Context, elem: etree._Element, s: Settings) -> None:
     s.record = tuple(chosen)
 
 
-def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
+def _clock_ticks(
+    ctx: Context, se: etree._Element, s: Settings, key, kind: str, times, start: Fraction
+) -> bool:
+    """A stimulus on a Clock: the ticks of a triggered input clock (master.clocks); False if not."""
+    info = ctx.comps[key[0]].info
+    found = (
+        [c for c in info.scheduled_execution.clocks if c.name == key[1]] if info.scheduled_execution else []
+    )
+    if not found:
+        ctx.at(se, f"{key[0]}.{key[1]} is a Clock: only a Scheduled Execution component's clocks tick")
+        return False
+    step = s.macro_step / s.step_ratio[key[0]]
+    problems = stimulus_problems(found[0], key[0] in s.scheduled, kind, times, start, step)
+    for problem in problems:
+        ctx.at(se, problem)
+    return not problems
+
+
+def _stimuli(ctx: Context, elem: etree._Element, s: Settings, start: Fraction = Fraction(0)) -> None:
     holder = elem.find(tag(NS_MM, "Stimuli"))
     found: dict[tuple[str, str], etree._Element] = {}
     stimuli = []
@@ -473,7 +515,8 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             )
             ok = False
         version = ctx.comps[key[0]].info.fmi_version
-        problem = stimulus_problem(var.fmi_type, version, kind, var.shape)
+        clock = var.fmi_type == "Clock"  # a triggered clock's ticks (master.clocks), checked below
+        problem = None if clock else stimulus_problem(var.fmi_type, version, kind, var.shape)
         if problem:
             ctx.at(se, f"{key[0]}.{key[1]} is {typed(var.fmi_type, var.shape)}: {problem}")
             ok = False
@@ -495,12 +538,14 @@ def _stimuli(ctx: Context, elem: etree._Element, s: Settings) -> None:
             if times and t <= times[-1]:
                 ctx.at(pe, f"time {t:g} s is not after the previous point's {times[-1]:g} s")
                 ok = False
-            problem = point_problem(f"{key[0]}.{key[1]}", var, version, t, v)
+            problem = None if clock else point_problem(f"{key[0]}.{key[1]}", var, version, t, v)
             if problem:
                 ctx.at(pe, problem)
                 ok = False
             times.append(t)
             values.append(v)
+        if clock and ok and times:
+            ok = _clock_ticks(ctx, se, s, key, kind, tuple(times), start)
         if ok and times:
             stimuli.append(Stimulus(key[0], key[1], kind, tuple(times), tuple(values)))
     s.stimuli = tuple(stimuli)
