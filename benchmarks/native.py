@@ -1,10 +1,10 @@
 """The master against the physical limit and against C++ masters, side by side in one run.
 
-    .venv/bin/python benchmarks/native.py [--repeat N] [--no-peers]
+    .venv/bin/python benchmarks/native.py [--repeat N] [--no-peers] [--whole]
 
 Cases: (a) the hydraulic-manipulator scene at the paper's steps (mechanics 1e-3 s, hydraulics
 2e-4 s, 3 s); (b) the same with both FMUs at 2e-4 s; (c) the two-mass oscillator at 1e-2 s for 10 s.
-Each case runs, interleaved `--repeat` times (best kept), on:
+Each case runs, interleaved `--repeat` times (best and median printed), on:
   harness      benchmarks/harness.c: dlopens the same FMUs and makes the same FMI calls in the
                same schedule with no master at all (order-0 coupling; no polynomials, no checks),
                without the re-read of outputs that depend on inputs at each macro step's end
@@ -17,7 +17,9 @@ Each case runs, interleaved `--repeat` times (best kept), on:
                each at its components' own steps, skipped with a note when not installed
 Times are of the stepping alone (FMUs loaded and initialised before the clock starts). Printed:
 each time and its ratio to the equal-work harness, and the peers' times over serial (> 1: we are
-faster).
+faster). --whole: times of whole runs instead, as a user sees them (ours: `master.run` of the
+Scenario, planning, loading, initialisation, stepping and closing; the peers': loading the FMUs to
+freeing them), without the harness.
 """
 
 from __future__ import annotations
@@ -26,9 +28,11 @@ import argparse
 import dataclasses
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -149,40 +153,51 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-peers", action="store_true")
+    ap.add_argument("--whole", action="store_true", help="time whole runs, initialisation included")
+    ap.add_argument("--cases", default="abc", help="which cases, e.g. c (default: abc)")
     args = ap.parse_args(argv)
     runners, notes = ({}, ["peers: not asked for"]) if args.no_peers else peers()
-    print(f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}; best of {args.repeat}, interleaved")
+    what = "whole runs" if args.whole else "stepping alone"
+    print(f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}; {what}, {args.repeat} interleaved runs")
     for note in notes:
         print(note)
     with tempfile.TemporaryDirectory(prefix="bench-native-") as tmp:
         exe = build_harness(Path(tmp))
         for label, sc in cases().items():
+            if label[1] not in args.cases:
+                continue
             work = Path(tmp) / label.split()[0].strip("()")
             work.mkdir()
             schedule = harness_schedule(sc, work)
             case = peer_case(sc)
-            best: dict[str, float] = {}
+            times: dict[str, list[float]] = {}
             for _ in range(args.repeat):
-                for name, extra in (("harness", []), ("equal-work", ["--equal-work"])):
+                for name, extra in (("harness", []), ("equal-work", ["--equal-work"])) * (not args.whole):
                     cmd = [str(exe), str(schedule), *extra]
                     out = subprocess.run(cmd, check=True, capture_output=True, text=True)
-                    best[name] = min(best.get(name, 1e9), float(out.stdout))
+                    times.setdefault(name, []).append(float(out.stdout))
                 for be in BACKENDS:
+                    t0 = time.perf_counter()
                     t = api.run(sc, backend=be).summary.stepping_time
-                    best[be] = min(best.get(be, 1e9), t)
+                    times.setdefault(be, []).append(time.perf_counter() - t0 if args.whole else t)
                 for name, run in runners.items():
                     try:
-                        best[name] = min(best.get(name, 1e9), run(case))
+                        times.setdefault(name, []).append(run(case, whole=args.whole))
                     except Exception as e:  # a peer that cannot run this case is reported, not fatal
                         notes.append(f"{name} on {label}: {e}")
                         runners = {k: v for k, v in runners.items() if k != name}
-            base = best["equal-work"]
-            print(f"\n{label}: {api.plan(sc).n_macro} macro steps")
+            best = {name: min(ts) for name, ts in times.items()}
+            median = {name: statistics.median(ts) for name, ts in times.items()}
+            print(f"\n{label}: {api.plan(sc).n_macro} macro steps (load {os.getloadavg()[0]:.2f})")
             for name, t in best.items():
-                print(f"  {name:<11} {t * 1e3:8.2f} ms   {t / base:5.2f} x equal-work harness")
+                ratio = "" if args.whole else f"   {t / best['equal-work']:5.2f} x equal-work harness"
+                print(f"  {name:<11} best {t * 1e3:8.2f} ms, median {median[name] * 1e3:8.2f} ms{ratio}")
             for name in runners:
                 if name in best:
-                    print(f"  {name} / serial = {best[name] / best['serial']:.2f}")
+                    print(
+                        f"  {name} / serial = {best[name] / best['serial']:.2f} on best times, "
+                        f"{median[name] / median['serial']:.2f} on medians"
+                    )
     return 0
 
 

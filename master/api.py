@@ -14,6 +14,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from master import extras
+from master.backends import BACKENDS
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
 from master.description import (
@@ -33,7 +34,6 @@ from master.schedule import Plan, build_plan
 
 log = logging.getLogger("master")
 
-BACKENDS = ("serial", "parallel", "auto", "in-process")
 _NOTED_FMUS: set[str] = set()  # FMUs whose Plan.fmu_notes this process has said
 
 

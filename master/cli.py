@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import difflib
 import json
 import logging
 import os
@@ -12,26 +11,34 @@ import sys
 import time
 from pathlib import Path
 
-from master import api, extras
-from master.backends.component import SimulationError
-from master.fmu import FmuError
-from master.scenario import ScenarioError
+from master import __version__
+from master.backends import BACKENDS
 
 SHOWN_FAILURES = 10  # failed cases a sweep lists by name; the table has them all
-USER_ERRORS: tuple[type[BaseException], ...] = (
-    api.UsageError,
-    extras.MissingExtra,
-    FmuError,
-    ScenarioError,
-    SimulationError,
-    FileNotFoundError,
-    ValueError,
-)
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The errors that are bad input: one line, exit code 1. Imported only once a command runs:
+    `master --version` and `--help` load none of the machinery (numpy, fmpy, lxml)."""
+    from master import api, extras
+    from master.backends.component import SimulationError
+    from master.fmu import FmuError
+    from master.scenario import ScenarioError
+
+    return (
+        api.UsageError,
+        extras.MissingExtra,
+        FmuError,
+        ScenarioError,
+        SimulationError,
+        FileNotFoundError,
+        ValueError,
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="master", description="Multirate FMI co-simulation master")
-    p.add_argument("--version", action="version", version=f"master {_version()}")
+    p.add_argument("--version", action="version", version=f"master {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="run a scenario", description="Run a scenario and write its results.")
@@ -60,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--backend",
         dest="backend",
-        choices=api.BACKENDS,
+        choices=BACKENDS,
         help="backend by name (default: auto, chosen by timing)",
     )
     r.add_argument(
@@ -207,15 +214,6 @@ def _sweep_parser(sub) -> None:
     s.add_argument("-q", "--quiet", action="store_true", help="print errors only")
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("master")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
-
-
 def _positive(text: str) -> float:
     try:
         value = float(text)
@@ -256,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
 
         return int(build_main(argv[1:], prog="master build-fmus") or 0)
     if argv[:1] == ["bench"]:
+        from master import extras
         from master.evidence.bench import main as bench_main
 
         try:
@@ -266,9 +265,12 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         _log_to_stderr(bool({"-q", "--quiet"} & set(argv)))
         return int(bench_main(argv[1:]) or 0)
-    args = _parse(argv)
+    args = _parse(argv)  # --version and --help end here
     quiet = getattr(args, "quiet", False)
     _log_to_stderr(quiet)
+    from master.backends.component import SimulationError
+
+    user_errors = _user_errors()
     try:
         return _dispatch(args, quiet)
     except BrokenPipeError:  # e.g. `master info X | head -1`: the reader has gone, nothing to say
@@ -278,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         signum = getattr(e, "signal", None)
         return 128 + signum if signum else 1  # the shell's convention: 130 SIGINT, 143 SIGTERM
-    except USER_ERRORS as e:
+    except user_errors as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
@@ -295,6 +297,8 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         sys.exit(2)
     args, unknown = p.parse_known_args(argv)
     if unknown:
+        import difflib
+
         sub = p.commands[args.command]  # type: ignore[attr-defined]
         known = [o for a in sub._actions for o in a.option_strings]
         close = difflib.get_close_matches(unknown[0].split("=")[0], known, n=1)
@@ -318,6 +322,9 @@ def scene_stem(scenario: str) -> str:
 
 
 def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
+    from master import api, extras
+    from master.backends.component import SimulationError
+
     extras.require(args.command, vars(args))  # before any work: one line if an extra is missing
     if args.command == "run":
         progress = args.progress or (sys.stderr.isatty() and not quiet)
@@ -407,7 +414,7 @@ def _dispatch(args: argparse.Namespace, quiet: bool) -> int:
 
 
 def _tune(args: argparse.Namespace, quiet: bool) -> int:
-    from master import tune
+    from master import api, tune
     from master.scenario.writer import write_settings
 
     sc = api.load_scenario(Path(args.scenario))

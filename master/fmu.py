@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
+import os
 import shutil
 import tempfile
 import zipfile
@@ -88,8 +89,8 @@ def _read_description(path: Path, _mtime_ns: int, _size: int) -> ModelDescriptio
 
 
 def safe_extract(path: Path, dest: Path) -> Path:
-    """Extract what running the FMU archive `path` needs into `dest`; refuse unsafe members (the
-    check of master.archives) and report damaged data as an FmuError.
+    """Extract what running the FMU archive `path` needs into `dest`, a new folder; refuse unsafe
+    members (the check of master.archives) and report damaged data as an FmuError.
 
     Every member is checked; documentation/, other platforms' binaries and, when this platform's
     binary is there, sources/ are not written (a run extracts each FMU afresh: most of an FMU
@@ -101,8 +102,9 @@ def safe_extract(path: Path, dest: Path) -> Path:
                 reason = unsafe(info)
                 if reason:
                     raise FmuError(f"{path}: member {info.filename!r}: {reason}")
-                target = (dest / info.filename).resolve()
-                if target != dest and dest not in target.parents:
+                # lexical: no member is a link (`unsafe`) and dest is new, so no path resolves elsewhere
+                target = os.path.normpath(os.path.join(dest, info.filename))
+                if target != str(dest) and not target.startswith(os.path.join(dest, "")):
                     raise FmuError(f"{path}: archive member escapes the extraction folder: {info.filename!r}")
             zf.extractall(dest, members=_needed(zf.namelist()))
     except DAMAGED as err:
@@ -118,6 +120,30 @@ def _needed(names: list[str]) -> list[str]:
     has_binary = any(n.startswith(ours) and not n.endswith("/") for n in names)
     skip = ("documentation/", "binaries/") + (("sources/",) if has_binary else ())
     return [n for n in names if n.startswith(ours) or not n.startswith(skip)]
+
+
+@functools.cache
+def _signatures_once(cls: type) -> type:
+    """fmpy's FMI 2 / FMI 3 class `cls`, but reading the C signatures of its FMI functions once per
+    class: fmpy reads them with `inspect` from its ~35 Python methods for every instance again (about
+    1.4 ms of a run's start per FMU). Where fmpy is not as expected, its own reading stands."""
+    signatures: list[tuple[str, list, list, object]] = []
+
+    def _loadFunctions(self) -> None:  # noqa: N802 (fmpy's name)
+        if not signatures:
+            cls._loadFunctions(self)
+            try:
+                signatures.extend((n, f.argnames, f.argtypes, f.restype) for n, f in self._functions.items())
+            except AttributeError:
+                pass
+            return
+        for name, argnames, argtypes, restype in signatures:  # FMI 2 and 3: the C name is the method's
+            f = getattr(self.dll, name)
+            f.argnames, f.argtypes, f.restype = argnames, argtypes, restype
+            self._functions[name] = f
+
+    # the same name: fmpy tells the FMI versions apart by it
+    return type(cls.__name__, (cls,), {"_loadFunctions": _loadFunctions, "__module__": __name__})
 
 
 # FMI 2 log messages reach the instance through its componentEnvironment, FMI 1 ones (whose logger
@@ -209,7 +235,10 @@ class Fmu:
         intermediate_update: bool = False,
         scheduled: bool = False,
         event_mode: bool = True,
+        unpacked: Path | None = None,
     ):
+        """unpacked: a folder where `path` is extracted already (`safe_extract`), shared with its
+        other instances: neither extracted again nor removed by `close`."""
         self.path = Path(path)
         self.name = instance_name
         self.md = read_description(self.path)
@@ -227,8 +256,8 @@ class Fmu:
         self.variables = variables_of(self.md)
         self.feedthrough = feedthrough_outputs(self.md)
         self.last_log = ""
-        self._own_dir = workdir is None
-        self.dir = Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_")) if workdir is None else workdir
+        self._own_dir = workdir is None and unpacked is None
+        self.dir = unpacked or workdir or Path(tempfile.mkdtemp(prefix=f"fmu_{instance_name}_"))
         self.slave = None
         self._instantiated = False
         self._initialized = False  # FMI 1.0: fmiTerminateSlave only after fmiInitializeSlave
@@ -240,7 +269,8 @@ class Fmu:
         self.intermediate = None
         self._ask = intermediate_update and asks
         try:
-            safe_extract(self.path, self.dir)
+            if unpacked is None:
+                safe_extract(self.path, self.dir)
             self._load()
         except BaseException:
             self.close()
@@ -261,7 +291,7 @@ class Fmu:
                 from fmpy.fmi3 import FMU3Model, FMU3ScheduledExecution, FMU3Slave
 
                 interface = FMU3ScheduledExecution if self.scheduled else FMU3Slave
-                self.slave = (FMU3Model if self.model_exchange else interface)(**kw)
+                self.slave = _signatures_once(FMU3Model if self.model_exchange else interface)(**kw)
                 if self._ask:
                     self._instantiate_intermediate()
                 elif self.event_mode:
@@ -280,7 +310,7 @@ class Fmu:
                     fmi2CallbackFunctions,
                 )
 
-                self.slave = (FMU2Model if self.model_exchange else FMU2Slave)(**kw)
+                self.slave = _signatures_once(FMU2Model if self.model_exchange else FMU2Slave)(**kw)
                 cb = fmi2CallbackFunctions()
                 cb.logger = _fmi2_logger()
                 cb.componentEnvironment = ctypes.c_void_p(self._log_key)

@@ -5,8 +5,11 @@ Times are in seconds.
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 from master.description import element_names, lookup
-from master.fmu import Fmu
+from master.fmu import Fmu, safe_extract
 from master.scenario.fmuinfo import TEXTS
 from master.scenario.model import Component, Scenario
 from master.schedule import KINDS, Plan, value_kind
@@ -102,8 +105,27 @@ def samples_read(plan: Plan, name: str) -> list[bool]:
     return [(m + 1) % k in used for m in range(k)]
 
 
-def open_fmu(sc: Scenario, comp: Component) -> Fmu:
-    """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode."""
+class Unpacked:
+    """The FMU files of a run, each extracted once into a folder of its own under `folder`: the
+    instances of one FMU in a process share its files and its loaded library, as FMI allows for an
+    FMU that may be instantiated more than once per process (Plan.exclusive keeps the others apart).
+    `unpacked(path)` extracts on first use and gives the folder; removing `folder` removes them."""
+
+    def __init__(self, folder: str | Path):
+        self.folder = Path(folder)
+        self.dirs: dict[Path, Path] = {}
+
+    def __call__(self, path: str | Path) -> Path:
+        key = Path(path).resolve()
+        if key not in self.dirs:
+            folder = tempfile.mkdtemp(prefix=f"fmu_{key.stem}_", dir=self.folder)
+            self.dirs[key] = safe_extract(key, Path(folder))
+        return self.dirs[key]
+
+
+def open_fmu(sc: Scenario, comp: Component, unpacked: Unpacked | None = None) -> Fmu:
+    """Load the FMU of `comp`, set its parameters and start values, enter initialisation mode;
+    from the files of `unpacked` where given (else extracted for this instance alone)."""
     fmu = Fmu(
         comp.fmu_path,
         comp.name,
@@ -111,6 +133,7 @@ def open_fmu(sc: Scenario, comp: Component) -> Fmu:
         intermediate_update=comp.interpolate_inputs,
         scheduled=comp.scheduled,
         event_mode=comp.event_mode,
+        unpacked=unpacked(comp.fmu_path) if unpacked is not None else None,
     )
     try:
         fmu.set_values(dict(comp.parameters))

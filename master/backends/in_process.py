@@ -7,10 +7,12 @@ worker process (master.backends.workers).
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 
-from master.backends.component import open_fmu, output_names
+from master.backends.component import Unpacked, open_fmu, output_names
 from master.backends.driver import signals_deferred
 from master.fmu import Fmu
 from master.recorder import Recorder
@@ -36,12 +38,15 @@ class InProcessBackend:
         self.plan = plan
         self.fmus: dict[str, Fmu] = {}
         self.compiled: CompiledPlan | None = None
+        self.tmp: str | None = None  # the extracted FMUs
 
     def open(self) -> None:
         """Load, instantiate and parameterise every FMU; enter initialisation mode; compile the plan."""
         sc = self.plan.scenario
+        self.tmp = tempfile.mkdtemp(prefix="master-run-")
+        unpacked = Unpacked(self.tmp)
         for pc in self.plan.components:
-            self.fmus[pc.name] = open_fmu(sc, sc.component(pc.name))
+            self.fmus[pc.name] = open_fmu(sc, sc.component(pc.name), unpacked)
         outs = {name: output_names(self.plan, name, fmu.variables) for name, fmu in self.fmus.items()}
         self.compiled = CompiledPlan(self.plan, self.fmus, outs, Memory(layout(self.plan, outs, 0)))
 
@@ -109,6 +114,9 @@ class InProcessBackend:
             f.close()
         self.fmus.clear()
         self.compiled = None
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.tmp = None
 
 
 def initialize(cp: CompiledPlan, fmus: dict[str, Fmu]) -> None:

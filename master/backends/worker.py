@@ -36,7 +36,7 @@ SPIN_S = 100e-6  # s: how long a waiting process polls before it sleeps (see Wor
 POLL_S = 0.02  # s: how often a waiting master checks that the workers are alive
 KILL_WAIT_S = 1.0  # s at most for a SIGKILLed worker to be reaped (it takes milliseconds)
 
-IDLE, RUNNING, FAILED = 0, 1, 2  # worker states in shared memory
+IDLE, RUNNING, FAILED, CLOSED = 0, 1, 2, 3  # worker states in shared memory (CLOSED: task freed at STOP)
 
 
 class Task(Protocol):
@@ -128,6 +128,10 @@ def _worker_main(
             task.command(op, a, b, where)
             state[0] = IDLE
             done.release()
+        task, closing = None, task
+        _close(closing)
+        state[0] = CLOSED  # no more FMU calls: the master may remove the task's files while this process ends
+        done.release()
     except BaseException as e:  # report, then end: the master decides what happens next
         text = str(e) if str(e) else "".join(traceback.format_exception_only(e)).strip()
         variable = getattr(e, "variable", None)
@@ -140,10 +144,14 @@ def _worker_main(
         done.release()
     finally:
         if task is not None:
-            try:
-                task.close()
-            except Exception:
-                pass
+            _close(task)
+
+
+def _close(task: Task) -> None:
+    try:
+        task.close()
+    except Exception:
+        pass  # the process ends: what it held goes with it
 
 
 def _spin_acquire(sem, spin: float) -> None:
@@ -335,8 +343,10 @@ class WorkerPool:
     def _failure(self, i: int, cause: str, t: float | None = None, raised: bool = False) -> WorkerFailure:
         return WorkerFailure(self._component(i), cause, t, raised, worker=i)
 
-    def close(self) -> None:
-        """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory."""
+    def close(self, while_ending: Callable[[], None] | None = None) -> None:
+        """Stop all workers (SIGKILL for those that do not stop within 2 s) and free shared memory.
+        while_ending(): called once no task runs any more (each freed at STOP, or its process
+        gone), while the processes end: removing the tasks' files then costs no extra time."""
         if self.closed:
             return
         self.closed = True
@@ -344,15 +354,31 @@ class WorkerPool:
         for g in self.go:
             g.release()
         deadline = time.monotonic() + 2.0
-        for p in self.procs:
-            p.join(max(0.0, deadline - time.monotonic()))
-        for p in self.procs:
-            if p.is_alive():
-                p.kill()
-                p.join(5.0)
+        state = self.control["state"]
+        for i, p in enumerate(self.procs):  # a failed worker frees its task and ends by itself
+            while state[i] not in (CLOSED, FAILED) and p.exitcode is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self.done[i].acquire(timeout=min(POLL_S, left))  # (an answer to an earlier command too)
+        running = [p for i, p in enumerate(self.procs) if state[i] != CLOSED]
+        self._end(running, deadline)
+        if while_ending is not None:
+            while_ending()
+        self._end(self.procs, deadline)
         for p in self.procs:
             if p.exitcode is not None:
                 p.close()
+
+    @staticmethod
+    def _end(procs: list, deadline: float) -> None:
+        """Reap `procs`, SIGKILLing those still alive at the deadline."""
+        for p in procs:
+            p.join(max(0.0, deadline - time.monotonic()))
+        for p in procs:
+            if p.is_alive():
+                p.kill()
+                p.join(5.0)
 
     def __enter__(self) -> WorkerPool:
         return self

@@ -26,7 +26,7 @@ from functools import partial
 
 import numpy as np
 
-from master.backends.component import SimulationError, open_fmu, output_names
+from master.backends.component import SimulationError, Unpacked, open_fmu, output_names
 from master.backends.driver import signals_deferred
 from master.backends.in_process import initialize_sweeps
 from master.backends.janitor import Janitor
@@ -128,9 +128,10 @@ class _Task:
             os.sched_setaffinity(0, {self.cpu})
         self.memory.touch()
         sc = self.plan.scenario
+        unpacked = Unpacked(self.tmp)  # removed with self.tmp by the master
         for i, name in enumerate(self.components):
             where[0] = i
-            self.fmus[name] = open_fmu(sc, sc.component(name))
+            self.fmus[name] = open_fmu(sc, sc.component(name), unpacked)
         self.cp = CompiledPlan(
             self.plan, self.fmus, self.outs, self.memory, self.worker, self.n_workers, self.spin
         )
@@ -238,7 +239,9 @@ class WorkerBackend:
             for pc in self.plan.components
         }
         row_bytes = 8 * len(self.plan.columns) + native.STRING_SLOT * len(text_columns(self.plan))
-        self.ring_rows = min(max(RING_BYTES // row_bytes, RING_ROWS[0]), RING_ROWS[1])
+        # a short run maps no more than its rows: the start's and at most one per macro step (record_due)
+        rows = min(RING_BYTES // row_bytes, self.plan.n_macro + 1)
+        self.ring_rows = min(max(rows, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
         counter(self.memory, "stop_at").value = native.NEVER
         self.memory["stopper"][:, 0] = native.NEVER
@@ -448,17 +451,20 @@ class WorkerBackend:
             n: float(ft[i, 0]) for i, n in enumerate(self.names)
         }
 
+    def _remove_files(self) -> None:
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.tmp = None
+
     def close(self) -> None:
         """Stop the workers (killing any that do not stop), remove the extracted FMUs."""
         try:
             self.cancel()
             if self.pool is not None:
-                self.pool.close()
+                self.pool.close(while_ending=self._remove_files)  # while the workers' processes end
         finally:
             self.pool = None
-            if self.tmp is not None:
-                shutil.rmtree(self.tmp, ignore_errors=True)
-                self.tmp = None
+            self._remove_files()
             if self.janitor is not None:
                 self.janitor.close()
                 self.janitor = None
