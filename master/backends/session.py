@@ -111,6 +111,12 @@ class Session:
             raise
         return RunResult(recorder, summary)
 
+    @property
+    def pid(self) -> int | None:
+        """The process id of its worker (None before the first case)."""
+        pool = self.backend.pool
+        return pool.procs[0].pid if pool is not None else None
+
     def close(self) -> None:
         self.backend.close()
 
