@@ -20,6 +20,7 @@ from master.backends import session
 from master.backends.component import SimulationError
 from master.fmu import Fmu
 from master.fmubuild import fmu_path
+from master.recorder import Recorder
 from master.scenario.model import Scenario
 
 REPO = Path(__file__).resolve().parent.parent
@@ -217,3 +218,27 @@ def test_a_sweep_on_one_worker_reuses_its_process_and_matches_single_runs(tmp_pa
             with pytest.raises(SimulationError) as fresh:
                 api.run(case)
             assert row["status"] == "failed" and row["message"] == str(fresh.value)
+
+
+def test_a_recorder_in_memory_gives_the_rows_a_file_gives():
+    """A warm run's rows stay in memory (no folder per case); where a column holds Strings they
+    go to the side file as ever."""
+    rows = np.arange(12.0).reshape(4, 3)
+    rows[:, 2] = np.array([-1, 2**40, 3, 4], dtype=np.int64).view(np.float64)  # an int64's bits
+    types = {"n": "int64"}
+    kept, filed = (
+        Recorder(["time", "x", "n"], types=types, in_memory=True),
+        Recorder(["time", "x", "n"], types=types),
+    )
+    for r in (kept, filed):
+        r.write(rows[:1])
+        r.next_row()[:] = rows[1]
+        r.commit()
+        r.write(rows[2:])
+        r.close()
+    assert kept.tmpdir is None and kept.rows == filed.rows == 4
+    assert kept.data().dtype == filed.data().dtype and kept.data().tobytes() == filed.data().tobytes()
+    filed.discard()
+    texts = Recorder(["time", "s"], types={"s": "String"}, in_memory=True)
+    assert texts.tmpdir is not None  # Strings: the side file
+    texts.discard()

@@ -95,7 +95,7 @@ class Session:
         worker could not renew its FMUs, the errors of loading them for the first case; after any
         of these, and after a failed run, the session must be closed."""
         be = self.backend
-        recorder = Recorder(plan.columns, None, types=plan.column_types)
+        recorder = Recorder(plan.columns, None, types=plan.column_types, in_memory=True)
         try:
             if self.runs == 0:
                 be.open()
@@ -132,7 +132,8 @@ class _WarmBackend(WorkerBackend):
     def initialize(self, recorder: Recorder) -> None:
         """As WorkerBackend.initialize, in one command to the worker."""
         assert self.pool is not None and self.janitor is not None
-        self.janitor.watch(recorder.tmpdir)
+        if recorder.tmpdir is not None:
+            self.janitor.watch(recorder.tmpdir)
         try:
             self.pool.run(OP_INIT)
         except WorkerFailure as e:
@@ -222,6 +223,7 @@ class _Pristine:
 
 
 _warm: dict[bytes, Session] = {}  # at most one: this process's session, by its structure
+_plans: dict[tuple, Plan] = {}  # at most one: the last plan, by its structure and stimuli
 _lock = threading.Lock()
 
 
@@ -231,13 +233,16 @@ def warm_run(sc: Scenario, backend: str = "serial", step_timeout: float | None =
     the one of another structure, as needed)."""
     from master import api
 
-    if backend != "serial":
+    if backend != "serial" or not _lock.acquire(blocking=False):  # busy: another thread's case
         return api.run(sc, backend=backend, step_timeout=step_timeout)
-    plan = api.plan(sc)
-    if not reusable(plan) or not _lock.acquire(blocking=False):  # busy: another thread's case
-        return api.run(sc, step_timeout=step_timeout)
     try:
-        key = structure(sc, step_timeout)
+        try:
+            key = structure(sc, step_timeout)
+        except OSError:  # an FMU file gone: the run says so as it does
+            return api.run(sc, step_timeout=step_timeout)
+        plan = _plan(sc, key)
+        if not reusable(plan):
+            return api.run(sc, step_timeout=step_timeout)
         session = _warm.get(key)
         if session is None:
             close_warm()
@@ -252,6 +257,21 @@ def warm_run(sc: Scenario, backend: str = "serial", step_timeout: float | None =
             raise
     finally:
         _lock.release()
+
+
+def _plan(sc: Scenario, key: bytes) -> Plan:
+    """`master.api.plan(sc)`; for a scene that differs from the last one only in its parameter
+    values, that one's plan with `sc` as its scenario: neither the checks nor the planner read
+    parameter values (the FMUs get them from plan.scenario)."""
+    from master import api
+
+    last = _plans.get((key, sc.stimuli))
+    if last is not None:
+        return dataclasses.replace(last, scenario=sc)
+    plan = api.plan(sc)
+    _plans.clear()
+    _plans[(key, sc.stimuli)] = plan
+    return plan
 
 
 def close_warm() -> None:
