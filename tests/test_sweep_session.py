@@ -242,3 +242,12 @@ def test_a_recorder_in_memory_gives_the_rows_a_file_gives():
     texts = Recorder(["time", "s"], types={"s": "String"}, in_memory=True)
     assert texts.tmpdir is not None  # Strings: the side file
     texts.discard()
+
+
+def test_a_plan_depends_on_parameter_values_only_through_its_scenario():
+    """What lets a session reuse the last case's plan for a case that differs in parameter values
+    only (session._plan): the checks and the planner read none of them."""
+    sc = api.load_scenario(OSCILLATOR, None, "2")
+    other = varied(sc, {"mass1": {"c": 7.0, "solver": 2}, "mass2": {"m": 0.1}})
+    a, b = api.plan(sc), api.plan(other)
+    assert dataclasses.replace(a, scenario=None) == dataclasses.replace(b, scenario=None)
