@@ -34,7 +34,7 @@ SCENE = Path(__file__).resolve().parent.parent / "tests" / "scenarios" / "oscill
 
 
 def load() -> str:
-    return "load %.2f" % os.getloadavg()[0]
+    return f"load {os.getloadavg()[0]:.2f}"
 
 
 def loop(cases: list[dict], stop_time: str) -> tuple[float, float, list[dict]]:
