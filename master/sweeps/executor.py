@@ -69,6 +69,10 @@ class Executor:
             self._stack.close()
             where = self.scheduler or "a local cluster"
             raise SweepError(f"--scheduler {where}: cannot connect ({e})") from None
+        try:  # part of the start-up, not of the first cases' time
+            self.client.run(_load_code)
+        except Exception:  # a worker without this package: its cases say so
+            pass
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -157,6 +161,13 @@ class Executor:
                     yield from zip(batch, outcomes, strict=True)
         finally:
             self.client.cancel([*futures, held])
+
+
+def _load_code() -> None:
+    """Import in a worker what running a case needs (a second or so the first time)."""
+    import master.api  # noqa: F401
+    import master.backends.session  # noqa: F401
+    import master.sweeps.case  # noqa: F401
 
 
 def _same(shared: tuple) -> tuple:
