@@ -149,9 +149,12 @@ class _WarmBackend(WorkerBackend):
         self.position = self.drained = 0
         self.running, self.recorder = False, None
         self._rate = (time.perf_counter(), 0)
+        data = pickle.dumps(plan)  # before the command: the worker waits for it no longer than it must
         try:
             self.pool.start(OP_RENEW)
-            self.cases.send(plan)  # after the command: a large plan fills the pipe until the worker reads
+            self.cases.send_bytes(
+                data
+            )  # after the command: a large plan fills the pipe until the worker reads
             self.pool.wait(timeout=self.pool.setup_timeout)
         except (WorkerFailure, OSError) as e:
             raise Stale(str(e)) from None
@@ -180,7 +183,7 @@ class _WarmTask(_Task):
             return super().command(OP_FINISH_INIT, 0, 0, where)
         if op != OP_RENEW:
             return super().command(op, a, b, where)
-        plan: Plan = self.cases.recv()
+        plan: Plan = pickle.loads(self.cases.recv_bytes())
         sc = plan.scenario
         renewed = False
         for i, name in enumerate(self.components):  # as component.open_fmu, with a renewed instance
