@@ -3,6 +3,7 @@ process whose FMUs are loaded once and reset between cases, each bit for bit the
 `master.run`; a failed case ends the session and the next case runs in a fresh one."""
 
 import dataclasses
+import os
 from fractions import Fraction
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from test_iterated import set_b
 from test_loops import ring
 from test_model_exchange import oscillator as me_oscillator
 from test_parallel import assert_no_children, lags
+from test_sweep import dask_cluster  # noqa: F401  (a fixture)
 
 import master
 import master.api as api
@@ -251,3 +253,14 @@ def test_a_plan_depends_on_parameter_values_only_through_its_scenario():
     other = varied(sc, {"mass1": {"c": 7.0, "solver": 2}, "mass2": {"m": 0.1}})
     a, b = api.plan(sc), api.plan(other)
     assert dataclasses.replace(a, scenario=None) == dataclasses.replace(b, scenario=None)
+
+
+def test_a_sweep_on_workers_that_outlive_it_ends_their_sessions(tmp_path, dask_cluster):  # noqa: F811
+    from distributed import Client
+
+    master.sweep(OSCILLATOR, ["mass1.c=1:2:4"], out=tmp_path, scheduler=dask_cluster, stop_time="1")
+    with Client(dask_cluster, timeout="30s") as client:
+        pids = client.run(os.getpid)
+    for pid in pids.values():  # no worker process of a session left (the resource tracker aside)
+        left = [p for p in psutil.Process(pid).children() if "resource_tracker" not in " ".join(p.cmdline())]
+        assert left == []

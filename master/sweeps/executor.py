@@ -76,6 +76,11 @@ class Executor:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self.client is not None and self.scheduler is not None:  # workers that outlive the sweep
+            try:
+                self.client.run(_close_code)
+            except Exception:
+                pass
         self._stack.close()
         if exc[0] is None:
             self._raise_held()
@@ -168,6 +173,13 @@ def _load_code() -> None:
     import master.api  # noqa: F401
     import master.backends.session  # noqa: F401
     import master.sweeps.case  # noqa: F401
+
+
+def _close_code() -> None:
+    """End in a worker what the cases left open: the warm session's worker process."""
+    from master.backends.session import close_warm
+
+    close_warm()
 
 
 def _same(shared: tuple) -> tuple:
