@@ -149,12 +149,12 @@ class _WarmBackend(WorkerBackend):
         self.position = self.drained = 0
         self.running, self.recorder = False, None
         self._rate = (time.perf_counter(), 0)
-        data = pickle.dumps(plan)  # before the command: the worker waits for it no longer than it must
+        # pickled before the command (the worker waits no longer than it must), sent after it (a
+        # large plan fills the pipe until the worker reads)
+        data = pickle.dumps(plan)
         try:
             self.pool.start(OP_RENEW)
-            self.cases.send_bytes(
-                data
-            )  # after the command: a large plan fills the pipe until the worker reads
+            self.cases.send_bytes(data)
             self.pool.wait(timeout=self.pool.setup_timeout)
         except (WorkerFailure, OSError) as e:
             raise Stale(str(e)) from None
