@@ -128,6 +128,7 @@ class _WarmBackend(WorkerBackend):
         super().__init__(plan, [[pc.name for pc in plan.components]], step_timeout, None, "serial")
         reader, self.cases = mp.get_context("fork").Pipe(duplex=False)
         self.task = partial(_WarmTask, reader)
+        self.poll = False  # a sweep runs a session per processor: a poller would take its partner's
 
     def initialize(self, recorder: Recorder) -> None:
         """As WorkerBackend.initialize, in one command to the worker."""

@@ -233,6 +233,7 @@ class WorkerBackend:
         self.recorder: Recorder | None = None
         self._rate = (time.perf_counter(), 0)  # (when, rows drained then): the drain period follows the rate
         self.task = _Task  # what a worker runs: called with the plan, its names, ... (see open)
+        self.poll = True  # WorkerPool's poll
 
     def open(self) -> None:
         """Map the shared memory, start the workers; each loads and parameterises its FMUs."""
@@ -272,7 +273,7 @@ class WorkerBackend:
             for w, names in enumerate(self.groups)
         ]
         try:
-            self.pool = WorkerPool(tasks, step_timeout=self.step_timeout)
+            self.pool = WorkerPool(tasks, step_timeout=self.step_timeout, poll=self.poll)
         except WorkerFailure as e:  # loading is not simulating: as in-process, an FmuError
             raise FmuError(
                 e.cause if e.raised else f"component {e.component}: {e.cause} while loading"
