@@ -264,3 +264,24 @@ def test_a_sweep_on_workers_that_outlive_it_ends_their_sessions(tmp_path, dask_c
     for pid in pids.values():  # no worker process of a session left (the resource tracker aside)
         left = [p for p in psutil.Process(pid).children() if "resource_tracker" not in " ".join(p.cmdline())]
         assert left == []
+
+
+def test_an_fmu_without_a_working_reset_gets_a_new_instance_of_its_loaded_binary(monkeypatch):
+    """Where fmi2Reset is missing (here: looked up under a name the FMU does not export) the
+    worker frees the instance and instantiates the loaded binary again; the cases stay in one
+    process and equal single runs."""
+    import master.fmu as fmu_module
+
+    monkeypatch.setitem(fmu_module._RESET, 2, "fmi2ResetMissing")  # before the worker is forked
+    used = Fmu(fmu_path("bouncing_ball"), "ball")
+    try:
+        assert used.renew() is True  # a new instance (malloc may well give it the old address)
+    finally:
+        used.close()
+    base = api.load_scenario(OSCILLATOR, None, "2")
+    pids = []
+    for c in (1.0, 2.5, 0.5):
+        sc = varied(base, {"mass1": {"c": c}})
+        assert_same_run(session.warm_run(sc), api.run(sc))
+        pids.append(worker_pid())
+    assert len(set(pids)) == 1
