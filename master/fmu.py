@@ -42,6 +42,8 @@ from master.description import (
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 OK_STATUS = 1  # fmi2Warning / fmi3Warning: a raw call's status above this is a failure
 NO_STATE_RESTORED = ctypes.c_int(1)  # doStep's noSetFMUStatePriorToCurrentPoint
+_RESET = {1: "fmiResetSlave", 2: "fmi2Reset", 3: "fmi3Reset"}  # by FMI version (1: the slave's)
+_FREE = {1: "fmiFreeSlaveInstance", 2: "fmi2FreeInstance", 3: "fmi3FreeInstance"}
 
 
 class FmuError(Exception):
@@ -292,40 +294,15 @@ class Fmu:
 
                 interface = FMU3ScheduledExecution if self.scheduled else FMU3Slave
                 self.slave = _signatures_once(FMU3Model if self.model_exchange else interface)(**kw)
-                if self._ask:
-                    self._instantiate_intermediate()
-                elif self.event_mode:
-                    self.slave.instantiate(logMessage=self._log3, eventModeUsed=True, earlyReturnAllowed=True)
-                else:
-                    self.slave.instantiate(logMessage=self._log3)
             elif self.fmi == 1:
-                self._load1(kw)
+                from fmpy.fmi1 import FMU1Slave
+
+                self.slave = FMU1Slave(**kw)
             else:
-                from fmpy import calloc, free
-                from fmpy.fmi2 import (
-                    FMU2Model,
-                    FMU2Slave,
-                    fmi2CallbackAllocateMemoryTYPE,
-                    fmi2CallbackFreeMemoryTYPE,
-                    fmi2CallbackFunctions,
-                )
+                from fmpy.fmi2 import FMU2Model, FMU2Slave
 
                 self.slave = _signatures_once(FMU2Model if self.model_exchange else FMU2Slave)(**kw)
-                cb = fmi2CallbackFunctions()
-                cb.logger = _fmi2_logger()
-                cb.componentEnvironment = ctypes.c_void_p(self._log_key)
-                cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-                cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-                try:  # fmpy's native proxy formats the message with its variadic arguments
-                    from fmpy.logging import addLoggerProxy
-
-                    addLoggerProxy(ctypes.byref(cb))
-                except (ImportError, OSError, AttributeError):
-                    pass  # messages then keep their printf placeholders
-                self._callbacks = cb  # the FMU keeps the pointer: the structure must live as long
-                self.slave.instantiate(callbacks=cb)
-            self._instantiated = True
-            self._bind_raw()
+            self._instantiate()
         except FMICallException as e:
             raise FmuError(self.describe(str(e))) from e
         except Exception as e:
@@ -361,17 +338,50 @@ class Fmu:
         if not s.component:
             raise FmuError(self.describe("fmi3InstantiateCoSimulation failed"))
 
-    def _load1(self, kw: dict) -> None:
+    def _instantiate(self) -> None:
+        """Instantiate the loaded binary (again, after `renew` freed the instance), its log messages
+        to `last_log`; bind the raw calls to the new instance."""
+        if self.fmi3 and self._ask:
+            self._instantiate_intermediate()
+        elif self.fmi3 and self.event_mode:
+            self.slave.instantiate(logMessage=self._log3, eventModeUsed=True, earlyReturnAllowed=True)
+        elif self.fmi3:
+            self.slave.instantiate(logMessage=self._log3)
+        elif self.fmi == 1:
+            self._instantiate1()
+        else:
+            from fmpy import calloc, free
+            from fmpy.fmi2 import (
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+            )
+
+            cb = fmi2CallbackFunctions()
+            cb.logger = _fmi2_logger()
+            cb.componentEnvironment = ctypes.c_void_p(self._log_key)
+            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            try:  # fmpy's native proxy formats the message with its variadic arguments
+                from fmpy.logging import addLoggerProxy
+
+                addLoggerProxy(ctypes.byref(cb))
+            except (ImportError, OSError, AttributeError):
+                pass  # messages then keep their printf placeholders
+            self._callbacks = cb  # the FMU keeps the pointer: the structure must live as long
+            self.slave.instantiate(callbacks=cb)
+        self._instantiated = True
+        self._bind_raw()
+
+    def _instantiate1(self) -> None:
         """Instantiate an FMI 1.0 Co-Simulation slave, its log messages to `last_log`."""
         from fmpy import calloc, free
         from fmpy.fmi1 import (
-            FMU1Slave,
             fmi1CallbackAllocateMemoryTYPE,
             fmi1CallbackFreeMemoryTYPE,
             fmi1CallbackFunctions,
         )
 
-        self.slave = FMU1Slave(**kw)
         cb = fmi1CallbackFunctions()
         cb.logger = _fmi2_logger()  # FMI 1's logger type is FMI 2's (same C signature)
         cb.allocateMemory = fmi1CallbackAllocateMemoryTYPE(calloc)
@@ -662,6 +672,39 @@ class Fmu:
         status = self.raw_do_step(self.handle, ctypes.c_double(t), ctypes.c_double(h), NO_STATE_RESTORED)
         if status > OK_STATUS:
             raise self.call_error("do_step", status)
+
+    def renew(self) -> bool:
+        """Back to the state after instantiation, every variable at its start value, for another
+        run of the loaded binary: fmi2Reset, fmi3Reset or fmiResetSlave (after fmiTerminateSlave);
+        where that fails, the instance is freed and instantiated again. True when the instance is
+        a new one (its handle changed); FmuError when it cannot be had either way."""
+        self.last_log = ""
+        if self.fmi == 1 and self._initialized:
+            self._raw("fmiTerminateSlave")  # a refusal just leads to a new instance
+        self._initialized = False
+        reset = self._raw(_RESET[self.fmi])
+        if reset is not None and reset <= OK_STATUS:
+            return False
+        free = self.slave.dll[self.function_name(_FREE[self.fmi])]
+        free.restype, free.argtypes = None, [ctypes.c_void_p]
+        if self.fmi == 1:
+            _LOGGING.pop(self.slave.component, None)
+        free(self.slave.component)
+        self._instantiated = False
+        try:
+            self._instantiate()
+        except Exception as e:
+            raise FmuError(f"{self.name}: cannot instantiate {self.path.name} again: {e}") from e
+        return True
+
+    def _raw(self, name: str) -> int | None:
+        """The status of FMI function `name` called with the instance alone; None if not exported."""
+        try:
+            f = self.slave.dll[self.function_name(name)]
+        except AttributeError:
+            return None
+        f.restype, f.argtypes = ctypes.c_int, [ctypes.c_void_p]
+        return f(self.slave.component)
 
     def close(self) -> None:
         """Terminate, free the instance and remove the extracted files; safe to call twice."""

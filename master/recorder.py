@@ -57,10 +57,13 @@ class Recorder:
         csv_path: Path | None = None,
         chunk_rows: int = CHUNK_ROWS,
         types: dict[str, str] | None = None,
+        in_memory: bool = False,
     ):
         """types: column -> "int64", "uint64", "String" or "Binary" for those not float64 (a row
         holds an int64's or uint64's bits in its 8 bytes; a String's or Binary's come with the
-        rows, `write`)."""
+        rows, `write`). in_memory: the rows kept in memory, not in a temporary folder (`tmpdir`
+        None; not where a column holds Strings or Binaries): short runs one after another, a
+        sweep's, make and remove no folder each."""
         self.columns = columns
         self.types = {c: t for c, t in (types or {}).items() if c in columns and t != "float64"}
         self._text = [i for i, c in enumerate(columns) if self.types.get(c) in TEXT_TYPES]
@@ -82,6 +85,11 @@ class Recorder:
                 raise ResultsError(
                     f"{self.csv_path}: cannot write the results there ({e.strerror or e})"
                 ) from None
+        self._blocks: list[np.ndarray] | None = [] if in_memory and not self._text else None
+        self.tmpdir: Path | None = None
+        self._bin = self._texts = None
+        if self._blocks is not None:
+            return
         self.tmpdir = Path(tempfile.mkdtemp(prefix="master_results_"))
         self.bin_path = self.tmpdir / "results.bin"
         self._bin = open(self.bin_path, "wb")
@@ -158,6 +166,9 @@ class Recorder:
             self.fill = 0
 
     def _append(self, block: np.ndarray) -> None:
+        if self._blocks is not None:
+            self._blocks.append(np.array(block))  # a copy: the block may be the kernel's ring
+            return
         try:
             self._bin.write(np.ascontiguousarray(block).tobytes())
             if self._csv is not None:
@@ -188,7 +199,7 @@ class Recorder:
     def close(self) -> None:
         """Flush and close the files (the results stay readable through `data()`)."""
         self.flush()
-        if not self._bin.closed:
+        if self._bin is not None and not self._bin.closed:
             self._bin.close()
         if self._csv is not None and not self._csv.closed:
             self._csv.close()
@@ -196,6 +207,10 @@ class Recorder:
     def data(self) -> np.ndarray:
         """All rows as a structured array with fields "time", "component.variable", ... (float64;
         int64 / uint64, and object for Strings (str) and Binaries (bytes), where `types` says)."""
+        if self._blocks is not None:
+            self.flush()
+            rows = np.concatenate(self._blocks) if self._blocks else np.zeros((0, len(self.columns)))
+            return np.ascontiguousarray(rows).view(self.dtype).reshape(-1)  # the bytes a file holds
         if not self._bin.closed:
             self.flush()
             self._bin.flush()
@@ -218,7 +233,8 @@ class Recorder:
         self.close()
         if self._texts is not None and not self._texts.closed:
             self._texts.close()
-        shutil.rmtree(self.tmpdir, ignore_errors=True)
+        if self.tmpdir is not None:
+            shutil.rmtree(self.tmpdir, ignore_errors=True)
 
 
 def _quoted(text: str) -> str:

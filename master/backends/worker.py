@@ -190,7 +190,9 @@ class WorkerPool:
     tasks: (component names, factory) per worker; the factory runs in the worker process.
     Workers are forked, so that they inherit anonymous shared memory (no name in /dev/shm to
     leave behind). Times are in seconds: `step_timeout` bounds each command unless a supervisor
-    watches it (see `run`), `setup_timeout` the start-up.
+    watches it (see `run`), `setup_timeout` the start-up. poll: whether a waiting process polls
+    before it sleeps (False for pools beside others on the same processors: a sweep's, where a
+    poller takes the processor its partner needs).
     """
 
     def __init__(
@@ -198,10 +200,12 @@ class WorkerPool:
         tasks: Sequence[tuple[Sequence[str], Callable[[], Task]]],
         step_timeout: float = 10.0,
         setup_timeout: float = 60.0,
+        poll: bool = True,
     ):
         self.names = [list(names) for names, _ in tasks]
         self.step_timeout = step_timeout
         self.setup_timeout = setup_timeout
+        self.poll = poll
         ctx = mp.get_context("fork")
         w = len(tasks)
         self.control = Memory(
@@ -223,7 +227,7 @@ class WorkerPool:
         self.started = 0.0  # time.monotonic() at which the last command was sent
         try:
             parent = os.getpid()
-            spin = SPIN_S if w <= cpu_count() else 0.0  # pollers must not take processors from workers
+            spin = SPIN_S if poll and w <= cpu_count() else 0.0  # pollers must not take workers' processors
             for i, (_, factory) in enumerate(tasks):
                 p = ctx.Process(
                     target=_worker_main,
@@ -270,7 +274,7 @@ class WorkerPool:
         """
         t0 = time.perf_counter()
         end = t0 + budget if budget > 0 else float("inf")
-        spin = SPIN_S if self.last_wait < SPIN_S else 0.0
+        spin = SPIN_S if self.poll and self.last_wait < SPIN_S else 0.0
         timeout = self.step_timeout if timeout is None else timeout
         deadline = self.started + timeout
         poll = min(POLL_S, timeout)

@@ -180,6 +180,12 @@ class _Task:
             f.close()
 
 
+def arm(memory: Memory) -> None:
+    """Fresh (zeroed) run memory made ready for a run: no stop requested."""
+    counter(memory, "stop_at").value = native.NEVER
+    memory["stopper"][:, 0] = native.NEVER
+
+
 def realtime() -> tuple[int, int]:
     """Make this process a real-time one where permitted: SCHED_FIFO, and all its memory locked
     (no page fault in a frame). Returns the errno of each attempt (0: done)."""
@@ -228,6 +234,8 @@ class WorkerBackend:
         self.running = False
         self.recorder: Recorder | None = None
         self._rate = (time.perf_counter(), 0)  # (when, rows drained then): the drain period follows the rate
+        self.task = _Task  # what a worker runs: called with the plan, its names, ... (see open)
+        self.poll = True  # WorkerPool's poll
 
     def open(self) -> None:
         """Map the shared memory, start the workers; each loads and parameterises its FMUs."""
@@ -243,8 +251,7 @@ class WorkerBackend:
         rows = min(RING_BYTES // row_bytes, self.plan.n_macro + 1)
         self.ring_rows = min(max(rows, RING_ROWS[0]), RING_ROWS[1])
         self.memory = Memory(layout(self.plan, outs, len(self.groups), self.ring_rows), shared=True)
-        counter(self.memory, "stop_at").value = native.NEVER
-        self.memory["stopper"][:, 0] = native.NEVER
+        arm(self.memory)
         self.janitor = Janitor()  # before the workers: they hold its pipe too, and die with the master
         self.tmp = tempfile.mkdtemp(prefix="master-run-")
         self.janitor.watch(self.tmp)
@@ -255,13 +262,22 @@ class WorkerBackend:
             (
                 names,
                 partial(
-                    _Task, self.plan, names, outs, self.memory, w, len(self.groups), cpu(w), spin, self.tmp
+                    self.task,
+                    self.plan,
+                    names,
+                    outs,
+                    self.memory,
+                    w,
+                    len(self.groups),
+                    cpu(w),
+                    spin,
+                    self.tmp,
                 ),
             )
             for w, names in enumerate(self.groups)
         ]
         try:
-            self.pool = WorkerPool(tasks, step_timeout=self.step_timeout)
+            self.pool = WorkerPool(tasks, step_timeout=self.step_timeout, poll=self.poll)
         except WorkerFailure as e:  # loading is not simulating: as in-process, an FmuError
             raise FmuError(
                 e.cause if e.raised else f"component {e.component}: {e.cause} while loading"

@@ -1,8 +1,10 @@
 """One case of a sweep, as a Dask task: the scenario with the case's values, run in isolation.
 
-The run goes through `master.run` with the serial backend, so the FMUs step in a worker process of
-their own: a crashing FMU ends that process, never the Dask worker, and the case comes back as
-failed with the run's one-line message. Nothing a case does raises out of `run_case`.
+The run is `master.run`'s with the serial backend, so the FMUs step in a worker process of their
+own: a crashing FMU ends that process, never the Dask worker, and the case comes back as failed
+with the run's one-line message. The cases of one Dask worker share that process where they can
+(master.backends.session: the FMUs loaded once, reset between cases). Nothing a case does raises
+out of `run_case`.
 """
 
 from __future__ import annotations
@@ -54,15 +56,15 @@ def apply_case(sc: Scenario, ranges: list[Range], values: dict) -> Scenario:
 def run_case(sc: Scenario, ranges: list[Range], options: CaseOptions, values: dict) -> dict:
     """Run one case: {"status", "message", "wall_time" (s), "t_end" (s, last row), "columns":
     {column: (final, min, max)}, "metrics": {name: value}, "series": rows or None}."""
-    from master.api import run
     from master.backends.component import SimulationError
+    from master.backends.session import warm_run
     from master.scenario.values import BadValue
 
     t0 = time.perf_counter()
     status, message, data = OK, "", None
     try:
         scene = apply_case(sc, ranges, values)
-        data = run(scene, backend=options.backend, step_timeout=options.step_timeout).data
+        data = warm_run(scene, options.backend, options.step_timeout).data
     except BadValue as e:
         status, message = INVALID, str(e)
     except SimulationError as e:

@@ -69,9 +69,18 @@ class Executor:
             self._stack.close()
             where = self.scheduler or "a local cluster"
             raise SweepError(f"--scheduler {where}: cannot connect ({e})") from None
+        try:  # part of the start-up, not of the first cases' time
+            self.client.run(_load_code)
+        except Exception:  # a worker without this package: its cases say so
+            pass
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self.client is not None and self.scheduler is not None:  # workers that outlive the sweep
+            try:
+                self.client.run(_close_code)
+            except Exception:
+                pass
         self._stack.close()
         if exc[0] is None:
             self._raise_held()
@@ -157,6 +166,20 @@ class Executor:
                     yield from zip(batch, outcomes, strict=True)
         finally:
             self.client.cancel([*futures, held])
+
+
+def _load_code() -> None:
+    """Import in a worker what running a case needs (a second or so the first time)."""
+    import master.api  # noqa: F401
+    import master.backends.session  # noqa: F401
+    import master.sweeps.case  # noqa: F401
+
+
+def _close_code() -> None:
+    """End in a worker what the cases left open: the warm session's worker process."""
+    from master.backends.session import close_warm
+
+    close_warm()
 
 
 def _same(shared: tuple) -> tuple:
