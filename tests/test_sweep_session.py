@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from test_clocks import SCENE as CLOCKS
+from test_cs_events import network
 from test_iterated import set_b
 from test_loops import ring
 from test_model_exchange import oscillator as me_oscillator
@@ -23,7 +25,7 @@ from master.backends.component import SimulationError
 from master.fmu import Fmu
 from master.fmubuild import fmu_path
 from master.recorder import Recorder
-from master.scenario.model import Scenario
+from master.scenario.model import Scenario, Scheme
 
 REPO = Path(__file__).resolve().parent.parent
 OSCILLATOR = REPO / "tests" / "scenarios" / "oscillator" / "oscillator.ssd"
@@ -94,6 +96,14 @@ SCENES = {  # a scene and, per case, the values of its parameters
     "iterated": (
         lambda tmp: set_b(Fraction(1), stop=Fraction(10)),
         [{"mass1": {"c": c}} for c in (1.0, 2.0, 0.5)],
+    ),
+    "fmi3-event-mode": (  # stair -> latch -> latch, their events handled in event mode by the kernel
+        lambda tmp: network(Scheme.GAUSS_SEIDEL),
+        [{"clock": {"period": p}} for p in (1.0, 0.7, 1.3)],
+    ),
+    "scheduled-execution": (  # the Reference FMUs' Clocks: partitions activated by the kernel
+        lambda tmp: api.load_scenario(CLOCKS),
+        [{}, {}],
     ),
 }
 
@@ -187,7 +197,7 @@ def test_a_renewed_fmu_is_back_at_its_start_values_and_steps_as_a_fresh_one(fmi)
         return out
 
     path = fmu_path("bouncing_ball", fmi)
-    used = Fmu(path, "ball")
+    used = Fmu(path, "ball", event_mode=False)  # steps driven here, events inside them
     try:
         trajectory(used, {"h0": 3.0, "e": 0.5})
         assert used.renew() is False  # reset: the same instance
@@ -198,7 +208,7 @@ def test_a_renewed_fmu_is_back_at_its_start_values_and_steps_as_a_fresh_one(fmi)
         again = trajectory(used, {"h0": 2.0, "e": 0.8})
     finally:
         used.close()
-    fresh = Fmu(path, "ball")
+    fresh = Fmu(path, "ball", event_mode=False)
     try:
         assert again == trajectory(fresh, {"h0": 2.0, "e": 0.8})
     finally:
