@@ -90,6 +90,17 @@ static void ask_intermediate_inputs(Instance *inst, double t) {
     inst->in_intermediate_update = 0;
 }
 
+/* Whether an instantiation token is this model's; where not, one log line from `function`. */
+static int token_matches(const char *function, fmi3String token, fmi3InstanceEnvironment environment,
+                         fmi3LogMessageCallback logMessage) {
+    char message[512];
+    if (token && strcmp(token, MODEL.guid) == 0) return 1;
+    snprintf(message, sizeof message, "%s: instantiation token \"%s\" does not match %s's \"%s\"", function,
+             token ? token : "(null)", MODEL.identifier, MODEL.guid);
+    if (logMessage) logMessage(environment, fmi3Error, "logError", message);
+    return 0;
+}
+
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                          fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
@@ -111,13 +122,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
         return NULL;
     }
-    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
-        snprintf(message, sizeof message,
-                 "fmi3InstantiateCoSimulation: instantiation token \"%s\" does not match %s's \"%s\"",
-                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+    if (!token_matches("fmi3InstantiateCoSimulation", instantiationToken, instanceEnvironment, logMessage))
         return NULL;
-    }
     inst = instance_new(name, KIND_CO_SIMULATION, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
                         loggingOn);
     if (!inst && logMessage)
@@ -138,16 +144,10 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
     const char *name = instanceName ? instanceName : "";
-    char message[512];
     Instance *inst;
     (void)resourcePath, (void)visible;
-    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
-        snprintf(message, sizeof message,
-                 "fmi3InstantiateModelExchange: instantiation token \"%s\" does not match %s's \"%s\"",
-                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+    if (!token_matches("fmi3InstantiateModelExchange", instantiationToken, instanceEnvironment, logMessage))
         return NULL;
-    }
     inst = instance_new(name, KIND_MODEL_EXCHANGE, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
                         loggingOn);
     if (!inst && logMessage)
@@ -163,7 +163,6 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                                                fmi3LockPreemptionCallback lockPreemption,
                                                fmi3UnlockPreemptionCallback unlockPreemption) {
     const char *name = instanceName ? instanceName : "";
-    char message[512];
     Instance *inst;
     (void)resourcePath, (void)visible, (void)lockPreemption, (void)unlockPreemption; /* no preemption */
     if (!MODEL.n_clocks) {
@@ -172,13 +171,8 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
                        "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");
         return NULL;
     }
-    if (!instantiationToken || strcmp(instantiationToken, MODEL.guid) != 0) {
-        snprintf(message, sizeof message,
-                 "fmi3InstantiateScheduledExecution: instantiation token \"%s\" does not match %s's \"%s\"",
-                 instantiationToken ? instantiationToken : "(null)", MODEL.identifier, MODEL.guid);
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
+    if (!token_matches("fmi3InstantiateScheduledExecution", instantiationToken, instanceEnvironment, logMessage))
         return NULL;
-    }
     inst = instance_new(name, KIND_CO_SIMULATION, 3, emit, (void (*)(void))logMessage, instanceEnvironment,
                         loggingOn);
     if (!inst) {
