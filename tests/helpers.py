@@ -52,16 +52,20 @@ def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str
     for s, o, e, i in connections:
         connectors[s].append((o, "output"))
         connectors[e].append((i, "input"))
+
+    def declared(name: str) -> str:  # its connectors (none: no element, which may not be empty)
+        items = "".join(f'<ssd:Connector name="{v}" kind="{k}"/>' for v, k in dict(connectors[name]).items())
+        return f"<ssd:Connectors>{items}</ssd:Connectors>" if items else ""
+
     elements = "".join(
-        f'<ssd:Component name="{name}" source="{source}"><ssd:Connectors>'
-        + "".join(f'<ssd:Connector name="{v}" kind="{k}"/>' for v, k in dict(connectors[name]).items())
-        + "</ssd:Connectors></ssd:Component>\n"
+        f'<ssd:Component name="{name}" source="{source}">{declared(name)}</ssd:Component>\n'
         for name, source in components.items()
     )
     links = "".join(
         f'<ssd:Connection startElement="{s}" startConnector="{o}" endElement="{e}" endConnector="{i}"/>\n'
         for s, o, e, i in connections
     )
+    links = f"    <ssd:Connections>\n{links}    </ssd:Connections>\n" if links else ""
     path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="{path.stem}"
     xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -70,9 +74,7 @@ def ssd(path: Path, components: dict[str, str], connections: list[tuple[str, str
   <ssd:System name="{path.stem}">
     <ssd:Elements>
 {elements}    </ssd:Elements>
-    <ssd:Connections>
-{links}    </ssd:Connections>
-    <ssd:Annotations>
+{links}    <ssd:Annotations>
       <ssc:Annotation type="org.multirate-master.settings">
         <mm:Settings macroStep="{macro_step}">{settings}</mm:Settings>
       </ssc:Annotation>

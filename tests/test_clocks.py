@@ -40,23 +40,7 @@ def alone(
     path: Path, macro_step: str = "1", stop: str = "9", settings: str = "", source: str = "project:clocks"
 ):
     """A scene of component `clocks` alone (FMU `source`), mm:Settings children `settings`."""
-    path.write_text(f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="{path.stem}"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:mm="urn:org.multirate-master:settings:1">
-  <ssd:System name="{path.stem}">
-    <ssd:Elements><ssd:Component name="clocks" source="{source}"/></ssd:Elements>
-    <ssd:Annotations>
-      <ssc:Annotation type="org.multirate-master.settings">
-        <mm:Settings macroStep="{macro_step}">{settings}</mm:Settings>
-      </ssc:Annotation>
-    </ssd:Annotations>
-  </ssd:System>
-  <ssd:DefaultExperiment stopTime="{stop}"/>
-</ssd:SystemStructureDescription>
-""")
-    return path
+    return ssd(path, {"clocks": source}, [], settings, macro_step, stop)
 
 
 def reference() -> dict[str, list[int]]:
