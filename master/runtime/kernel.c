@@ -329,6 +329,7 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     case MK_UINT32: SET_TYPED(uint32_t)
     case MK_INT64: SET_TYPED(int64_t)
     case MK_UINT64: SET_TYPED(uint64_t)
+    case MK_CLOCK_COUNT: return 0; /* a linked clock ticks through its activation (scheduled.c) */
     default: return 4; /* fmi3Fatal: a kind this kernel does not know */
     }
 }
@@ -349,6 +350,19 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     }
 #define EXACT_LIMIT (INT64_C(1) << 53)
 
+/* The ticks counted so far of output clocks vrs (MK_CLOCK_COUNT columns): a Scheduled Execution
+ * component's, counted after each point's activations (scheduled.c). */
+static int clock_counts(const mk_component *c, const uint32_t *vrs, int32_t nvr, double *v) {
+    const mk_scheduled *s = c->scheduled;
+    for (int32_t i = 0; i < nvr; i++) {
+        int32_t o = 0;
+        while (s && o < s->n_out_clocks && s->out_vrs[o] != vrs[i]) o++;
+        if (!s || o == s->n_out_clocks) return 4; /* fmi3Fatal: not a counted clock (the tables') */
+        v[i] = (double)s->out_ticks[o];
+    }
+    return 0;
+}
+
 static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, double *v, int32_t n,
                      int32_t *inexact, uint64_t *integer) {
     int st;
@@ -361,6 +375,7 @@ static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     case MK_UINT32: GET_TYPED(uint32_t, false)
     case MK_INT64: GET_TYPED(int64_t, x[i] > EXACT_LIMIT || x[i] < -EXACT_LIMIT)
     case MK_UINT64: GET_TYPED(uint64_t, x[i] > (uint64_t)EXACT_LIMIT)
+    case MK_CLOCK_COUNT: st = clock_counts(c, vrs, nvr, v); break;
     default: st = 4; /* fmi3Fatal: a kind this kernel does not know */
     }
     return st;

@@ -25,7 +25,7 @@ from master.backends.component import (
     samples_read,
     string_output_names,
 )
-from master.clocks import TICK_PERIODIC, every_from_fmu
+from master.clocks import TICK_LINKED, TICK_PERIODIC, every_from_fmu
 from master.coupling import weights
 from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, intermediate_inputs, lookup
 from master.fmu import Fmu, FmuError
@@ -474,7 +474,7 @@ class CompiledPlan:
         if asks:
             self._intermediate(c, fmu, in_names[: c.n_in_real])
         if pc.scheduled is not None:
-            self._scheduled(c, pc, fmu)
+            self._scheduled(c, pc, fmu, in_names)
         if fmu.event_mode:
             self._event_mode(c, pc, fmu, in_kinds)
 
@@ -490,7 +490,7 @@ class CompiledPlan:
         iu.values = _ptr(self._array(np.zeros(len(slots)), np.float64), C.c_double)
         c.intermediate = C.pointer(iu)
 
-    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
+    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Scheduled Execution component's clock tables (kernel.h: mk_scheduled, master.clocks)."""
         se = pc.scheduled
         t = native.Scheduled()
@@ -507,6 +507,9 @@ class CompiledPlan:
         t.due = _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64)
         first = clock_names(self.plan).index(f"{pc.name}.{ins[0].name}") if ins else 0  # in shared memory
         t.activations = _ptr(self.memory["clock_ticks"][first:], C.c_int64)
+        slots = [in_names.index(ck.name) if ck.tick == TICK_LINKED else -1 for ck in ins]  # source's count
+        t.slot = _ptr(self._array(slots, np.int32), C.c_int32)
+        t.seen = _ptr(self._array(np.zeros(len(ins)), np.float64), C.c_double)
         t.n_out_clocks = len(se.outputs)
         t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
         t.out_ticks = _ptr(self.memory["clock_ticks"][first + len(ins) :], C.c_int64)

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from master.clocks import scheduled_problems, stimulus_problems
+from master.clocks import link_problem, scheduled_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -88,6 +88,27 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
         step = Fraction(sc.macro_step) / c.step_ratio
         for problem in scheduled_problems(se.clocks, step):
             at(f"component {c.name}", problem)
+    _clock_links(sc, infos, at)
+
+
+def _clock_links(sc: Scenario, infos: Infos, at: At) -> None:
+    """Clock connections: an output clock to a triggered input clock, both of Scheduled Execution
+    components (master.clocks); a Clock to a non-clock is a type mismatch (`_connections`)."""
+
+    def clock(comp: str, name: str):
+        se = infos[comp].scheduled_execution if infos.get(comp) is not None else None
+        return next((k for k in se.clocks if k.name == name), None) if se is not None else None
+
+    for cn in sc.connections:
+        ends = (cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector)
+        infos_ok = all(infos.get(comp) is not None for comp, _ in ends)
+        variables = [infos[comp].variables.get(name) for comp, name in ends] if infos_ok else [None, None]
+        if not all(variables) or not all(v.fmi_type == "Clock" for v in variables):
+            continue
+        scheduled = tuple(sc.component(comp).scheduled for comp, _ in ends)
+        problem = link_problem(clock(*ends[0]), clock(*ends[1]), scheduled)
+        if problem:
+            at(f"connection {ends[0][0]}.{ends[0][1]} -> {ends[1][0]}.{ends[1][1]}", problem)
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:
