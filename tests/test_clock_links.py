@@ -13,9 +13,11 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import pytest
 from helpers import run_everywhere, ssd
 
 import master.api as api
+from master.scenario import ScenarioError
 from master.scenario.model import Scheme
 
 TICKS_OF_A = [0, 0, 0, 1, 1, 1, 1, 2, 2, 2]  # a.outClock's count at 0 .. 9 s
@@ -54,3 +56,29 @@ def test_an_output_clock_ticks_a_linked_input_clock_in_every_backend(tmp_path):
     # Jacobi: b sees a's count of the macro step's start, one step later
     data = _run(tmp_path, Scheme.JACOBI)
     assert list(data["b.inClock2Ticks"]) == [0] + TICKS_OF_A[:-1]
+
+
+def test_validate_accepts_a_clock_connection_and_info_names_it(tmp_path):
+    path = _linked(tmp_path, Scheme.JACOBI)
+    assert api.validate(path) == []
+    shown = api.plan(api.load_scenario(path)).describe()
+    assert "inClock2 at the ticks of the output clock connected to it" in shown
+    assert "a.outClock -> b.inClock2: order 0, held (Clock)" in shown
+
+
+def test_a_bad_clock_connection_is_one_clear_line(tmp_path):
+    (problem,) = map(str, api.validate(_linked(tmp_path, Scheme.JACOBI, end="inClock1")))
+    assert "ssd:Connection a.outClock -> b.inClock1" in problem
+    assert 'clock inClock1 is "constant": a Clock connection drives a triggered input clock' in problem
+    (problem,) = map(str, api.validate(_linked(tmp_path, Scheme.JACOBI, end="input2")))
+    assert "type mismatch: a.outClock is Clock, b.input2 is Int32" in problem
+
+
+def test_a_scenario_built_in_python_keeps_the_same_rule(tmp_path):
+    sc = api.load_scenario(_linked(tmp_path, Scheme.JACOBI))
+    (cn,) = sc.connections
+    bad = dataclasses.replace(sc, connections=(dataclasses.replace(cn, end_connector="inClock3"),))
+    with pytest.raises(
+        ScenarioError, match='clock inClock3 is "countdown": a Clock connection drives a triggered'
+    ):
+        api.plan(bad)

@@ -92,23 +92,30 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
 
 
 def _clock_links(sc: Scenario, infos: Infos, at: At) -> None:
-    """Clock connections: an output clock to a triggered input clock, both of Scheduled Execution
-    components (master.clocks); a Clock to a non-clock is a type mismatch (`_connections`)."""
-
-    def clock(comp: str, name: str):
-        se = infos[comp].scheduled_execution if infos.get(comp) is not None else None
-        return next((k for k in se.clocks if k.name == name), None) if se is not None else None
-
+    scheduled = {c.name: c.scheduled for c in sc.components}
     for cn in sc.connections:
         ends = (cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector)
-        infos_ok = all(infos.get(comp) is not None for comp, _ in ends)
-        variables = [infos[comp].variables.get(name) for comp, name in ends] if infos_ok else [None, None]
-        if not all(variables) or not all(v.fmi_type == "Clock" for v in variables):
-            continue
-        scheduled = tuple(sc.component(comp).scheduled for comp, _ in ends)
-        problem = link_problem(clock(*ends[0]), clock(*ends[1]), scheduled)
+        problem = clock_link_problem(ends, infos, scheduled)
         if problem:
             at(f"connection {ends[0][0]}.{ends[0][1]} -> {ends[1][0]}.{ends[1][1]}", problem)
+
+
+def clock_link_problem(ends, infos: Infos, scheduled: Mapping[str, bool]) -> str | None:
+    """Why a Clock connection ((component, output clock), (component, input clock)) cannot carry
+    ticks: it goes from an output clock to a triggered input clock of Scheduled Execution components
+    (scheduled: component -> whether it runs so; master.clocks). None if it can, or if it is not a
+    connection of two clocks (a Clock to a non-clock is a type mismatch: `connection_problem`)."""
+    if any(infos.get(comp) is None or comp not in scheduled for comp, _ in ends):
+        return None
+    variables = [infos[comp].variables.get(name) for comp, name in ends]
+    if not all(v is not None and v.fmi_type == "Clock" for v in variables):
+        return None
+
+    def clock(comp: str, name: str):
+        se = infos[comp].scheduled_execution
+        return next((k for k in se.clocks if k.name == name), None) if se is not None else None
+
+    return link_problem(clock(*ends[0]), clock(*ends[1]), tuple(scheduled[comp] for comp, _ in ends))
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:

@@ -20,6 +20,7 @@ from lxml import etree
 from master.description import FLOATS, Description, Variable
 
 from . import archive, bindings, defaults, fmuinfo, loops, settings, systems, transforms, xmlio
+from .check import clock_link_problem
 from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import SourceError
@@ -178,6 +179,13 @@ def _read(
         for name, h in setup.internal_step.items():  # unless a binding chose one
             params.setdefault(name, {}).setdefault(settings.INTERNAL_STEP, float(h))
     loops.check(ctx, links)
+    if setup is not None:  # Clock connections: between Scheduled Execution components' clocks
+        infos = {n: c.info for n, c in ctx.comps.items()}
+        scheduled = {n: n in setup.scheduled for n in ctx.comps}
+        for ends, elem in links:
+            problem = clock_link_problem((ends[:2], ends[2:]), infos, scheduled)
+            if problem:
+                ctx.at(elem, problem)
     if problems.items or setup is None or times is None:
         return None
 
