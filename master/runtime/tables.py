@@ -1235,6 +1235,13 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
     return out
 
 
+def event_counts(plan: Plan, memory: Memory) -> dict[str, int]:
+    """Events handled per component that had any: a Model Exchange or FMI 3 Co-Simulation
+    component in event mode (kernel.h: me_event_count, beside its steps)."""
+    steps = memory["steps"]
+    return {pc.name: int(steps[i, 1]) for i, pc in enumerate(plan.components) if steps[i, 1]}
+
+
 def iteration_counts(plan: Plan, memory: Memory) -> dict[str, int] | None:
     """Iterated macro steps: "sweeps" (repetitions from saved states, in all), "max" (the most in
     one macro step), "macro_steps" (those iterated); None when the plan does not iterate."""
