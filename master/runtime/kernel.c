@@ -350,15 +350,13 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     }
 #define EXACT_LIMIT (INT64_C(1) << 53)
 
-/* The ticks counted so far of output clocks vrs (MK_CLOCK_COUNT columns): a Scheduled Execution
- * component's, counted after each point's activations (scheduled.c). */
+/* The ticks counted so far of output clocks vrs (MK_CLOCK_COUNT columns; mk_component.out_clock_ticks). */
 static int clock_counts(const mk_component *c, const uint32_t *vrs, int32_t nvr, double *v) {
-    const mk_scheduled *s = c->scheduled;
     for (int32_t i = 0; i < nvr; i++) {
         int32_t o = 0;
-        while (s && o < s->n_out_clocks && s->out_vrs[o] != vrs[i]) o++;
-        if (!s || o == s->n_out_clocks) return 4; /* fmi3Fatal: not a counted clock (the tables') */
-        v[i] = (double)s->out_ticks[o];
+        while (o < c->n_out_clocks && c->out_clock_vrs[o] != vrs[i]) o++;
+        if (o == c->n_out_clocks) return 4; /* fmi3Fatal: not a counted clock (the tables') */
+        v[i] = (double)c->out_clock_ticks[o];
     }
     return 0;
 }
@@ -1200,6 +1198,8 @@ static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, in
         if (end) return *terminate = 1, MK_DONE;
     }
     (*c->me_event_count)++;
+    int32_t code = count_clocks(k, ci, j);
+    if (code != MK_DONE) return code;
     st = ((fmi_mode *)c->enter_step_mode)(c->instance);
     return st > STATUS_OK ? fail(k, MK_FMI_ERROR, ci, MK_CALL_ENTER_STEP_MODE, st, j) : MK_DONE;
 }

@@ -213,7 +213,7 @@ typedef struct {
  * (due: -1 none), a linked one (MK_TICK_LINKED, a triggered clock connected to an output clock) at
  * the points where its input slot, the source's tick count, differs from the count it last saw
  * (seen). Output clocks are read with fmi3GetClock after each point's activations and their
- * ticks counted. */
+ * ticks counted (mk_component.out_clock_ticks). */
 enum { MK_TICK_PERIODIC = 0, MK_TICK_COUNTDOWN = 1, MK_TICK_TRIGGERED = 2, MK_TICK_LINKED = 3 };
 #define MK_MAX_CLOCKS 64 /* input clocks of one component */
 
@@ -229,11 +229,7 @@ typedef struct {
     int64_t *activations;  /* [n_clocks]: counted */
     const int32_t *slot;   /* [n_clocks]: a linked clock's input slot (-1: not linked) */
     double *seen;          /* [n_clocks]: a linked clock's count when it last ticked */
-    int32_t n_out_clocks;
-    const uint32_t *out_vrs; /* [n_out_clocks] */
-    int64_t *out_ticks;      /* [n_out_clocks]: counted */
-    mk_function activate_model_partition, get_clock, get_interval; /* fmi3ActivateModelPartition, fmi3GetClock,
-                                                                      fmi3GetIntervalDecimal */
+    mk_function activate_model_partition, get_interval; /* fmi3ActivateModelPartition, fmi3GetIntervalDecimal */
 } mk_scheduled;
 
 /* One FMU instance and its place in the plan. Pointers stay owned by Python. */
@@ -391,6 +387,13 @@ typedef struct {
     uint8_t *cs_late; /* [step_ratio][n_in]: 1 where a held input's sample of step m is of a later time */
     double *cs_held;
     double *cs_held_saved;
+    /* FMI 3 output clocks whose ticks are counted (MK_CLOCK_COUNT columns): a Scheduled Execution
+     * component's (mk_scheduled's arrays), read after each point's activations; a Co-Simulation
+     * component's in event mode, read with fmi3GetClock after each event iteration (cs_event) */
+    int32_t n_out_clocks;
+    const uint32_t *out_clock_vrs; /* [n_out_clocks] */
+    int64_t *out_clock_ticks;      /* [n_out_clocks]: counted */
+    mk_function get_clock;         /* fmi3GetClock */
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -244,11 +244,7 @@ class Scheduled(C.Structure):
         ("activations", C.POINTER(_i64)),
         ("slot", C.POINTER(_i32)),
         ("seen", C.POINTER(_f64)),
-        ("n_out_clocks", _i32),
-        ("out_vrs", C.POINTER(_u32)),
-        ("out_ticks", C.POINTER(_i64)),
         ("activate_model_partition", _p),
-        ("get_clock", _p),
         ("get_interval", _p),
     ]
 
@@ -370,6 +366,10 @@ class Component(C.Structure):
         ("cs_late", C.POINTER(C.c_uint8)),
         ("cs_held", C.POINTER(C.c_double)),
         ("cs_held_saved", C.POINTER(C.c_double)),
+        ("n_out_clocks", _i32),
+        ("out_clock_vrs", C.POINTER(_u32)),
+        ("out_clock_ticks", C.POINTER(_i64)),
+        ("get_clock", _p),
     ]
 
 

@@ -8,6 +8,19 @@ typedef int fmi3_get_interval_decimal(void *, const uint32_t *, size_t, double *
 
 #define FMI3_INTERVAL_CHANGED 2 /* fmi3IntervalQualifier fmi3IntervalChanged */
 
+/* After an event iteration (or a point's activations): component ci's output clocks read with
+ * fmi3GetClock and their ticks counted. */
+static int32_t count_clocks(mk_kernel *k, int32_t ci, int64_t j) {
+    mk_component *c = &k->components[ci];
+    for (int32_t i = 0; i < c->n_out_clocks; i++) {
+        bool ticked = false;
+        int st = ((fmi3_get_clock *)c->get_clock)(c->instance, &c->out_clock_vrs[i], 1, &ticked);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_CLOCK, st, j);
+        c->out_clock_ticks[i] += ticked;
+    }
+    return MK_DONE;
+}
+
 /* Whether input clock i ticks at point j. */
 static bool se_due(const mk_scheduled *s, int32_t i, int64_t j) {
     if (s->tick[i] == MK_TICK_PERIODIC) return j >= s->phase[i] && (j - s->phase[i]) % s->every[i] == 0;
@@ -66,13 +79,7 @@ static int32_t se_activate(mk_kernel *k, int32_t ci, int64_t j) {
         if (code != MK_DONE) return code;
         i = 0;
     }
-    for (int32_t i = 0; i < s->n_out_clocks; i++) {
-        bool ticked = false;
-        int st = ((fmi3_get_clock *)s->get_clock)(c->instance, &s->out_vrs[i], 1, &ticked);
-        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_CLOCK, st, j);
-        s->out_ticks[i] += ticked;
-    }
-    return MK_DONE;
+    return count_clocks(k, ci, j);
 }
 
 /* Communication step m of a Scheduled Execution component, from point j to j + 1 (kernel.h:

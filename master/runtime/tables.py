@@ -510,9 +510,8 @@ class CompiledPlan:
         slots = [in_names.index(ck.name) if ck.tick == TICK_LINKED else -1 for ck in ins]  # source's count
         t.slot = _ptr(self._array(slots, np.int32), C.c_int32)
         t.seen = _ptr(self._array(np.zeros(len(ins)), np.float64), C.c_double)
-        t.n_out_clocks = len(se.outputs)
-        t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
-        t.out_ticks = _ptr(self.memory["clock_ticks"][first + len(ins) :], C.c_int64)
+        out_ticks = self.memory["clock_ticks"][first + len(ins) :]
+        self._out_clocks(c, pc, fmu, [ck.vr for ck in se.outputs], out_ticks)
         for slot, name in SCHEDULED_FUNCTIONS.items():
             f = _exported(fmu, name)
             if f is None:
@@ -520,6 +519,12 @@ class CompiledPlan:
             setattr(t, slot, f)
         self._keep.append(t)
         c.scheduled = C.pointer(t)
+
+    def _out_clocks(self, c: native.Component, pc: PlanComponent, fmu: Fmu, vrs: list[int], ticks) -> None:
+        """The output clocks whose ticks the kernel counts into `ticks` (kernel.h: out_clock_ticks)."""
+        if vrs:
+            _require(fmu, "get_clock", pc.name)
+        c.n_out_clocks, c.out_clock_vrs, c.out_clock_ticks = len(vrs), self._vrs(vrs), _ptr(ticks, C.c_int64)
 
     def _event_mode(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_kinds: list[str]) -> None:
         """An FMI 3 Co-Simulation component in event mode (kernel.h: mk_component.cs_events): its
@@ -534,6 +539,9 @@ class CompiledPlan:
         c.cs_held = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.cs_held_saved = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
+        outs = [v for v in fmu.md.modelVariables if v.causality == "output"]
+        clocks = [v.valueReference for v in outs if v.type == "Clock"]  # read after its events
+        self._out_clocks(c, pc, fmu, clocks, self._array(np.zeros(len(clocks)), np.int64))
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
