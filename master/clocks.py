@@ -190,16 +190,22 @@ def stimulus_problems(
     return [f"clock {clock.name}: {why}"] if why else []
 
 
+SCHEDULED, EVENTS = "Scheduled Execution", "event mode"  # how a component's clocks tick (`link_problem`)
+
+
 def link_problem(
-    source: ClockVariable | None, target: ClockVariable | None, scheduled: tuple[bool, bool]
+    source: ClockVariable | None, target: ClockVariable | None, modes: tuple[str, str]
 ) -> str | None:
     """Why a Clock connection cannot carry the ticks of output clock `source` to input clock `target`
-    (None: not a clock of a Scheduled Execution interface); scheduled: whether the source and the
-    consumer run as Scheduled Execution. None if it can."""
-    if source is None or not scheduled[0]:
-        return "a Clock connection starts at an output clock of a Scheduled Execution component"
-    if target is None or not scheduled[1]:
-        return "a Clock connection ends at an input clock of a Scheduled Execution component"
+    (None: no such clock); modes: how the source and the consumer run (SCHEDULED, EVENTS: FMI 3
+    Co-Simulation in event mode, "" otherwise). None if it can."""
+    if source is None or modes[0] not in (SCHEDULED, EVENTS):
+        return (
+            "a Clock connection starts at an output clock of a Scheduled Execution component or of an "
+            "FMI 3 Co-Simulation component in event mode"
+        )
+    if target is None or modes[1] != SCHEDULED:
+        return "a Clock connection ends at a triggered input clock of a Scheduled Execution component"
     if target.interval_variability != "triggered":
         return (
             f'clock {target.name} is "{target.interval_variability}": a Clock connection drives a triggered '

@@ -6,6 +6,10 @@ Two instances of the project's `clocks` model (fmus/clocks/, the Reference FMUs'
 inClock1 ticks every second, inClock2 at 1 s (a stimulus) and inClock3 once at 4 s, so its
 totalInClockTicks becomes 5 at 3 s and 10 at 7 s, where its outClock ticks; a.outClock drives
 b.inClock2.
+
+The project's `ticker` (fmus/ticker/, FMI 3 Co-Simulation in event mode) ticks its output clock at
+its time events, k period; with period 0.75 s and communication step 0.5 s most of them fall inside
+a step (it returns early there), and its count is read after each event iteration.
 """
 
 from __future__ import annotations
@@ -82,3 +86,47 @@ def test_a_scenario_built_in_python_keeps_the_same_rule(tmp_path):
         ScenarioError, match='clock inClock3 is "countdown": a Clock connection drives a triggered'
     ):
         api.plan(bad)
+
+
+TICKER = [0, 0, 1, 2, 2, 3, 4, 4, 5]  # ticks of period 0.75 s by 0, 0.5 .. 4 s
+
+
+def _ticker_file(tmp_path: Path, settings: str = "") -> Path:
+    return ssd(
+        tmp_path / "ticker.ssd",
+        {"t": "project:ticker", "b": "project:clocks"},
+        [("t", "tick", "b", "inClock2")],
+        settings=settings,
+        macro_step="0.5",
+        stop="4",
+    )
+
+
+def _from_ticker(tmp_path: Path, coupling: Scheme):
+    sc = api.load_scenario(_ticker_file(tmp_path))
+    comps = tuple(
+        dataclasses.replace(c, parameters={"period": 0.75}) if c.name == "t" else c for c in sc.components
+    )
+    record = (("t", "ticks"), ("b", "inClock2Ticks"))
+    return dataclasses.replace(sc, components=comps, coupling=coupling, order=("t", "b"), record=record)
+
+
+def test_a_co_simulation_output_clock_ticks_at_its_events_in_every_backend(tmp_path):
+    # Gauss-Seidel, ticker first: b's inClock2 ticks at each point by which the ticker ticked since
+    # the previous one (at most once a point), in the same instant
+    sc = _from_ticker(tmp_path, Scheme.GAUSS_SEIDEL)
+    data = run_everywhere(sc)
+    assert list(data["t.ticks"]) == TICKER
+    assert list(data["b.inClock2Ticks"]) == [0, 0, 1, 2, 2, 3, 4, 4, 5]
+    summary = api.run(sc).summary
+    assert summary.events == {"t": 5} and summary.clock_ticks["b.inClock2"] == 5
+    # Jacobi: one point later
+    data = run_everywhere(_from_ticker(tmp_path, Scheme.JACOBI))
+    assert list(data["b.inClock2Ticks"]) == [0, 0, 0, 1, 2, 2, 3, 4, 4]
+
+
+def test_a_co_simulation_output_clock_needs_event_mode(tmp_path):
+    off = '<mm:Component name="t" eventMode="false"/>'
+    (problem,) = map(str, api.validate(_ticker_file(tmp_path, off)))
+    assert "ssd:Connection t.tick -> b.inClock2: a Clock connection starts at an output clock of a" in problem
+    assert "or of an FMI 3 Co-Simulation component in event mode" in problem

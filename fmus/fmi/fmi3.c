@@ -105,9 +105,9 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
      * there.  No intermediate variables are offered. */
     (void)resourcePath, (void)visible;
     (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables;
-    if (MODEL.me_only || MODEL.n_clocks) { /* its description has no CoSimulation */
+    if (MODEL.me_only || MODEL.activate) { /* its description has no CoSimulation */
         snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers %s only", MODEL.identifier,
-                 MODEL.n_clocks ? "Scheduled Execution" : "Model Exchange");
+                 MODEL.activate ? "Scheduled Execution" : "Model Exchange");
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
         return NULL;
     }
@@ -166,7 +166,7 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
     char message[512];
     Instance *inst;
     (void)resourcePath, (void)visible, (void)lockPreemption, (void)unlockPreemption; /* no preemption */
-    if (!MODEL.n_clocks) {
+    if (!MODEL.activate) { /* a model with partitions (a Co-Simulation one may have output clocks) */
         if (logMessage)
             logMessage(instanceEnvironment, fmi3Error, "logError",
                        "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");

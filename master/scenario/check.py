@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from master.clocks import link_problem, scheduled_problems, stimulus_problems
+from master.clocks import EVENTS, SCHEDULED, link_problem, read_clocks, scheduled_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -92,30 +92,34 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
 
 
 def _clock_links(sc: Scenario, infos: Infos, at: At) -> None:
-    scheduled = {c.name: c.scheduled for c in sc.components}
+    modes = {c.name: clock_mode(infos.get(c.name), c.scheduled, c.event_mode) for c in sc.components}
     for cn in sc.connections:
         ends = (cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector)
-        problem = clock_link_problem(ends, infos, scheduled)
+        problem = clock_link_problem(ends, infos, modes)
         if problem:
             at(f"connection {ends[0][0]}.{ends[0][1]} -> {ends[1][0]}.{ends[1][1]}", problem)
 
 
-def clock_link_problem(ends, infos: Infos, scheduled: Mapping[str, bool]) -> str | None:
+def clock_mode(info: Description | None, scheduled: bool, event_mode: bool) -> str:
+    """How a component's clocks tick (master.clocks.link_problem): SCHEDULED, EVENTS or ""."""
+    cs = info.co_simulation if info is not None else None
+    return SCHEDULED if scheduled else EVENTS if event_mode and cs is not None and cs.event_mode else ""
+
+
+def clock_link_problem(ends, infos: Infos, modes: Mapping[str, str]) -> str | None:
     """Why a Clock connection ((component, output clock), (component, input clock)) cannot carry
-    ticks: it goes from an output clock to a triggered input clock of Scheduled Execution components
-    (scheduled: component -> whether it runs so; master.clocks). None if it can, or if it is not a
-    connection of two clocks (a Clock to a non-clock is a type mismatch: `connection_problem`)."""
-    if any(infos.get(comp) is None or comp not in scheduled for comp, _ in ends):
+    ticks (modes: component -> `clock_mode`; master.clocks.link_problem). None if it can, or if it
+    is not a connection of two clocks (a Clock to a non-clock is a type mismatch: `connection_problem`)."""
+    if any(infos.get(comp) is None or comp not in modes for comp, _ in ends):
         return None
     variables = [infos[comp].variables.get(name) for comp, name in ends]
     if not all(v is not None and v.fmi_type == "Clock" for v in variables):
         return None
 
     def clock(comp: str, name: str):
-        se = infos[comp].scheduled_execution
-        return next((k for k in se.clocks if k.name == name), None) if se is not None else None
+        return next((k for k in read_clocks(infos[comp].path) if k.name == name), None)
 
-    return link_problem(clock(*ends[0]), clock(*ends[1]), tuple(scheduled[comp] for comp, _ in ends))
+    return link_problem(clock(*ends[0]), clock(*ends[1]), tuple(modes[comp] for comp, _ in ends))
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:

@@ -20,7 +20,7 @@ from lxml import etree
 from master.description import FLOATS, Description, Variable
 
 from . import archive, bindings, defaults, fmuinfo, loops, settings, systems, transforms, xmlio
-from .check import clock_link_problem
+from .check import clock_link_problem, clock_mode
 from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import SourceError
@@ -181,9 +181,12 @@ def _read(
     loops.check(ctx, links)
     if setup is not None:  # Clock connections: between Scheduled Execution components' clocks
         infos = {n: c.info for n, c in ctx.comps.items()}
-        scheduled = {n: n in setup.scheduled for n in ctx.comps}
+        modes = {
+            n: clock_mode(c.info, n in setup.scheduled, setup.event_mode.get(n, True))
+            for n, c in ctx.comps.items()
+        }
         for ends, elem in links:
-            problem = clock_link_problem((ends[:2], ends[2:]), infos, scheduled)
+            problem = clock_link_problem((ends[:2], ends[2:]), infos, modes)
             if problem:
                 ctx.at(elem, problem)
     if problems.items or setup is None or times is None:
