@@ -204,8 +204,11 @@ def link_problem(
             "a Clock connection starts at an output clock of a Scheduled Execution component or of an "
             "FMI 3 Co-Simulation component in event mode"
         )
-    if target is None or modes[1] != SCHEDULED:
-        return "a Clock connection ends at a triggered input clock of a Scheduled Execution component"
+    if target is None or modes[1] not in (SCHEDULED, EVENTS):
+        return (
+            "a Clock connection ends at a triggered input clock of a Scheduled Execution component or of "
+            "an FMI 3 Co-Simulation component in event mode"
+        )
     if target.interval_variability != "triggered":
         return (
             f'clock {target.name} is "{target.interval_variability}": a Clock connection drives a triggered '

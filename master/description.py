@@ -106,8 +106,9 @@ FMI_FUNCTIONS = {
     "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
     # FMI 3 Co-Simulation with Event Mode (kernel.h: mk_component.cs_events)
     "enter_step_mode": (None, None, "fmi3EnterStepMode"),
-    # FMI 3 output clocks whose ticks are counted (kernel.h: mk_component.out_clock_ticks)
+    # FMI 3 clocks: output clocks whose ticks are counted (kernel.h: mk_component.out_clock_ticks),
     "get_clock": (None, None, "fmi3GetClock"),
+    "set_clock": (None, None, "fmi3SetClock"),  # triggered input clocks of one in event mode
 }
 
 

@@ -391,9 +391,10 @@ def _clock_problems(desc: dict[str, Any]) -> list[str]:
             problems.append(f"clock {c['vr']}: a {c['interval_variability']} clock needs an interval > 0")
         if c["interval_variability"] == "countdown" and not 0 <= c["interval_slot"] < desc["n_reals"]:
             problems.append(f"clock {c['vr']}: a countdown clock needs a real slot for its interval")
-    inputs = [v for v in desc["variables"] if v["type"] == "Clock" and v["causality"] == "input"]
-    if inputs and not desc["has_activate"]:
-        problems.append("a model with input clocks needs MODEL.activate (its partitions)")
+    inputs = {vr for vr, v in enumerate(variables) if v["type"] == "Clock" and v["causality"] == "input"}
+    kinds = {c["interval_variability"] for c in desc["clocks"] if c["vr"] in inputs}
+    if kinds - {"triggered"} and not desc["has_activate"]:  # a Co-Simulation model's: fmi3SetClock
+        problems.append("a model with input clocks other than triggered ones needs MODEL.activate")
     return problems
 
 

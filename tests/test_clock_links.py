@@ -130,3 +130,26 @@ def test_a_co_simulation_output_clock_needs_event_mode(tmp_path):
     (problem,) = map(str, api.validate(_ticker_file(tmp_path, off)))
     assert "ssd:Connection t.tick -> b.inClock2: a Clock connection starts at an output clock of a" in problem
     assert "or of an FMI 3 Co-Simulation component in event mode" in problem
+
+
+def test_a_co_simulation_input_clock_ticks_in_an_input_event_in_every_backend(tmp_path):
+    """ticker -> counter, both FMI 3 Co-Simulation in event mode: counter's inClock is set active
+    (fmi3SetClock) in an input event where the ticker's count grew, and counter counts it."""
+    path = ssd(
+        tmp_path / "counter.ssd",
+        {"t": "project:ticker", "c": "project:counter"},
+        [("t", "tick", "c", "inClock")],
+        macro_step="0.5",
+        stop="4",
+    )
+    assert api.validate(path) == []
+    sc = api.load_scenario(path)
+    comps = tuple(
+        dataclasses.replace(c, parameters={"period": 0.75}) if c.name == "t" else c for c in sc.components
+    )
+    sc = dataclasses.replace(sc, components=comps, record=(("t", "ticks"), ("c", "count")))
+    data = run_everywhere(dataclasses.replace(sc, coupling=Scheme.GAUSS_SEIDEL, order=("t", "c")))
+    assert list(data["t.ticks"]) == TICKER
+    assert list(data["c.count"]) == [0, 0, 1, 2, 2, 3, 4, 4, 5]  # a tick a point where the count grew
+    data = run_everywhere(dataclasses.replace(sc, coupling=Scheme.JACOBI))
+    assert list(data["c.count"]) == [0, 0, 0, 1, 2, 2, 3, 4, 4]

@@ -417,8 +417,15 @@ fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], si
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                         const fmi3Clock values[]) {
     GUARD("fmi3SetClock", ANY_STATE);
-    (void)vr, (void)nvr, (void)values;
-    return unsupported(inst, "fmi3SetClock", "the FMU has no clocks");
+    if (!MODEL.n_clocks || MODEL.activate) /* Scheduled Execution: its partitions are activated instead */
+        return unsupported(inst, "fmi3SetClock", MODEL.n_clocks ? "its input clocks tick through their partitions"
+                                                                : "the FMU has no clocks");
+    for (size_t i = 0; i < nvr; i++) { /* one at a time: fmi3Clock is a bool, the layer's an int */
+        int active = values[i] != fmi3ClockInactive;
+        LayerStatus st = clock_set(inst, "fmi3SetClock", &vr[i], 1, &active);
+        if (st != LAYER_OK) return (fmi3Status)st;
+    }
+    return fmi3OK;
 }
 
 /* -------------------------------------------------------- dependencies */

@@ -1176,6 +1176,24 @@ static const double *held_from(mk_component *c, const double *u, int32_t m, uint
     return c->scratch;
 }
 
+typedef int fmi3_set_clock(void *, const uint32_t *, size_t, const bool *);
+
+/* An input event's linked input clocks (MK_CLOCK_COUNT inputs of u) whose source's count differs
+ * from the one last set: set active (fmi3SetClock), before the discrete-state updates. */
+static int set_clocks(const mk_component *c, const double *u) {
+    const int32_t typed = c->n_in - c->n_in_typed;
+    const bool active = true;
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        int st;
+        if (i >= typed && c->in_kinds[i - typed] == MK_CLOCK_COUNT && u[i] != c->cs_held[d] &&
+            (st = ((fmi3_set_clock *)c->set_clock)(c->instance, &c->in_vrs[i], 1, &active)) > STATUS_OK)
+            return st;
+        d++;
+    }
+    return 0;
+}
+
 /* The event iteration of an FMI 3 Co-Simulation FMU at its current time (point j's step): event mode,
  * its inputs u set there where given (an input event; NULL: those of the step, held), then
  * fmi3UpdateDiscreteStates until no update is needed (at most MK_EVENT_ROUNDS, else MK_EVENT), step
@@ -1186,6 +1204,7 @@ static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, in
     int st = ((fmi_mode *)c->enter_event_mode)(c->instance);
     if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
     if (u && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u && c->set_clock && (st = set_clocks(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_CLOCK, st, j);
     if (u) hold_discrete(c, u);
     bool needed = true, end = false;
     for (int32_t round = 0; needed; round++) {

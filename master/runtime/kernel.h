@@ -87,7 +87,7 @@ enum {
     /* Scheduled Execution (mk_scheduled) */
     MK_CALL_ACTIVATE_MODEL_PARTITION, MK_CALL_GET_CLOCK, MK_CALL_GET_INTERVAL,
     /* FMI 3 Co-Simulation event mode */
-    MK_CALL_ENTER_STEP_MODE,
+    MK_CALL_ENTER_STEP_MODE, MK_CALL_SET_CLOCK,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -394,6 +394,8 @@ typedef struct {
     const uint32_t *out_clock_vrs; /* [n_out_clocks] */
     int64_t *out_clock_ticks;      /* [n_out_clocks]: counted */
     mk_function get_clock;         /* fmi3GetClock */
+    mk_function set_clock;         /* fmi3SetClock: in an input event, a linked input clock whose source's
+                                      count grew since it was last set (MK_CLOCK_COUNT inputs) */
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -91,6 +91,7 @@ CALLS = (
     "get_interval",
     # FMI 3 Co-Simulation event mode
     "enter_step_mode",
+    "set_clock",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
@@ -370,6 +371,7 @@ class Component(C.Structure):
         ("out_clock_vrs", C.POINTER(_u32)),
         ("out_clock_ticks", C.POINTER(_i64)),
         ("get_clock", _p),
+        ("set_clock", _p),
     ]
 
 
