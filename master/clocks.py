@@ -13,9 +13,12 @@ Input clocks by intervalVariability:
 - countdown: the FMU announces its next tick with fmi3GetIntervalDecimal (qualifier changed) after an
   activation; it ticks that interval later, on the grid.
 - triggered: ticks where the scenario says: a step stimulus on the clock, a tick at each of its
-  times with a nonzero value (times on the grid); or a Clock connection from an output clock of a
-  Scheduled Execution component (linked): at each point where the source's count of ticks, which the
-  connection carries as a held integer, has grown since the clock last ticked.
+  times with a nonzero value (times on the grid); or a Clock connection from an output clock
+  (linked): at each point where the source's count of ticks, which the connection carries as a held
+  integer, has grown since the clock last ticked. The source is a Scheduled Execution component or
+  an FMI 3 Co-Simulation one in event mode, whose output clocks the kernel reads after each event
+  iteration; a Co-Simulation consumer in event mode has its linked clocks set active (fmi3SetClock)
+  in an input event instead (`link_problem`).
 - changing (and fixed or tunable without an interval in the description): not supported.
 
 Clocks that tick at the same point are activated in priority order (a smaller priority first), each

@@ -22,7 +22,7 @@ from helpers import run_everywhere, ssd
 
 import master.api as api
 from master.scenario import ScenarioError
-from master.scenario.model import Scheme
+from master.scenario.model import Iteration, Scheme
 
 TICKS_OF_A = [0, 0, 0, 1, 1, 1, 1, 2, 2, 2]  # a.outClock's count at 0 .. 9 s
 A_TICKS_AT_1 = (
@@ -86,6 +86,9 @@ def test_a_scenario_built_in_python_keeps_the_same_rule(tmp_path):
         ScenarioError, match='clock inClock3 is "countdown": a Clock connection drives a triggered'
     ):
         api.plan(bad)
+    # iterated macro steps repeat steps from saved FMU states, which do not hold the counts of ticks
+    with pytest.raises(ScenarioError, match="a Clock connection does not run with iterated macro steps"):
+        api.plan(dataclasses.replace(sc, iteration=Iteration()))
 
 
 TICKER = [0, 0, 1, 2, 2, 3, 4, 4, 5]  # ticks of period 0.75 s by 0, 0.5 .. 4 s

@@ -62,6 +62,7 @@ def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[P
     _record(sc, infos, at)
     _model_exchange(sc, infos, at)
     _scheduled(sc, infos, at)
+    _clock_links(sc, infos, at)
     _iteration(sc, infos, at)
     return problems.items
 
@@ -88,14 +89,13 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
         step = Fraction(sc.macro_step) / c.step_ratio
         for problem in scheduled_problems(se.clocks, step):
             at(f"component {c.name}", problem)
-    _clock_links(sc, infos, at)
 
 
 def _clock_links(sc: Scenario, infos: Infos, at: At) -> None:
     modes = {c.name: clock_mode(infos.get(c.name), c.scheduled, c.event_mode) for c in sc.components}
     for cn in sc.connections:
         ends = (cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector)
-        problem = clock_link_problem(ends, infos, modes)
+        problem = clock_link_problem(ends, infos, modes, sc.iteration is not None)
         if problem:
             at(f"connection {ends[0][0]}.{ends[0][1]} -> {ends[1][0]}.{ends[1][1]}", problem)
 
@@ -106,10 +106,11 @@ def clock_mode(info: Description | None, scheduled: bool, event_mode: bool) -> s
     return SCHEDULED if scheduled else EVENTS if event_mode and cs is not None and cs.event_mode else ""
 
 
-def clock_link_problem(ends, infos: Infos, modes: Mapping[str, str]) -> str | None:
+def clock_link_problem(ends, infos: Infos, modes: Mapping[str, str], iterated: bool) -> str | None:
     """Why a Clock connection ((component, output clock), (component, input clock)) cannot carry
-    ticks (modes: component -> `clock_mode`; master.clocks.link_problem). None if it can, or if it
-    is not a connection of two clocks (a Clock to a non-clock is a type mismatch: `connection_problem`)."""
+    ticks (modes: component -> `clock_mode`; master.clocks.link_problem; iterated: mm:Iteration).
+    None if it can, or if it is not a connection of two clocks (a Clock to a non-clock is a type
+    mismatch: `connection_problem`)."""
     if any(infos.get(comp) is None or comp not in modes for comp, _ in ends):
         return None
     variables = [infos[comp].variables.get(name) for comp, name in ends]
@@ -119,7 +120,10 @@ def clock_link_problem(ends, infos: Infos, modes: Mapping[str, str]) -> str | No
     def clock(comp: str, name: str):
         return next((k for k in read_clocks(infos[comp].path) if k.name == name), None)
 
-    return link_problem(clock(*ends[0]), clock(*ends[1]), tuple(modes[comp] for comp, _ in ends))
+    problem = link_problem(clock(*ends[0]), clock(*ends[1]), tuple(modes[comp] for comp, _ in ends))
+    if problem is None and iterated:  # the kernel's counts of ticks are not part of the saved states
+        return "a Clock connection does not run with iterated macro steps (mm:Iteration)"
+    return problem
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:
