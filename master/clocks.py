@@ -13,12 +13,18 @@ Input clocks by intervalVariability:
 - countdown: the FMU announces its next tick with fmi3GetIntervalDecimal (qualifier changed) after an
   activation; it ticks that interval later, on the grid.
 - triggered: ticks where the scenario says: a step stimulus on the clock, a tick at each of its
-  times with a nonzero value (times on the grid).
+  times with a nonzero value (times on the grid); or a Clock connection from an output clock
+  (linked): at each point where the source's count of ticks, which the connection carries as a held
+  integer, has grown since the clock last ticked. The source is a Scheduled Execution component or
+  an FMI 3 Co-Simulation one in event mode, whose output clocks the kernel reads after each event
+  iteration; a Co-Simulation consumer in event mode has its linked clocks set active (fmi3SetClock)
+  in an input event instead (`link_problem`).
 - changing (and fixed or tunable without an interval in the description): not supported.
 
 Clocks that tick at the same point are activated in priority order (a smaller priority first), each
 at most once per point. Output clocks are read with fmi3GetClock after each point's activations and
-their ticks counted; Clock variables are neither connected nor recorded as numbers.
+their ticks counted; that count is the output clock's value in a Clock connection. Clock variables
+are not recorded as numbers.
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ PERIODIC = ("constant", "fixed", "tunable")
 MAX_CLOCKS = 64  # input clocks of one component (kernel.h: MK_MAX_CLOCKS)
 SUPPORTED = (*PERIODIC, "countdown", "triggered")
 # what the kernel does with an input clock (kernel.h: mk_scheduled.kinds)
-TICK_PERIODIC, TICK_COUNTDOWN, TICK_TRIGGERED = 0, 1, 2
+TICK_PERIODIC, TICK_COUNTDOWN, TICK_TRIGGERED, TICK_LINKED = 0, 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -109,6 +115,8 @@ class Scheduled:
                 parts.append(f"{c.name} every {c.every * step} s from {c.phase * step} s")
             elif c.tick == TICK_COUNTDOWN:
                 parts.append(f"{c.name} when the FMU counts it down")
+            elif c.tick == TICK_LINKED:
+                parts.append(f"{c.name} at the ticks of the output clock connected to it")
             else:
                 parts.append(f"{c.name} at {len(c.points)} stimulus times")
         return ", ".join(parts)
@@ -185,6 +193,33 @@ def stimulus_problems(
     return [f"clock {clock.name}: {why}"] if why else []
 
 
+SCHEDULED, EVENTS = "Scheduled Execution", "event mode"  # how a component's clocks tick (`link_problem`)
+
+
+def link_problem(
+    source: ClockVariable | None, target: ClockVariable | None, modes: tuple[str, str]
+) -> str | None:
+    """Why a Clock connection cannot carry the ticks of output clock `source` to input clock `target`
+    (None: no such clock); modes: how the source and the consumer run (SCHEDULED, EVENTS: FMI 3
+    Co-Simulation in event mode, "" otherwise). None if it can."""
+    if source is None or modes[0] not in (SCHEDULED, EVENTS):
+        return (
+            "a Clock connection starts at an output clock of a Scheduled Execution component or of an "
+            "FMI 3 Co-Simulation component in event mode"
+        )
+    if target is None or modes[1] not in (SCHEDULED, EVENTS):
+        return (
+            "a Clock connection ends at a triggered input clock of a Scheduled Execution component or of "
+            "an FMI 3 Co-Simulation component in event mode"
+        )
+    if target.interval_variability != "triggered":
+        return (
+            f'clock {target.name} is "{target.interval_variability}": a Clock connection drives a triggered '
+            "input clock"
+        )
+    return None
+
+
 def every_from_fmu(clock: InputClock, interval: float, step: Fraction) -> tuple[int | None, str]:
     """A periodic clock's interval as the FMU gives it (fmi3GetIntervalDecimal, s) in points of the
     grid of step `step`: (points, "") or (None, why not)."""
@@ -224,9 +259,10 @@ def schedule(
     start: Fraction,
     step: Fraction,
     ticks: dict[str, tuple[tuple[float, ...], tuple[float, ...]]],
+    linked: frozenset[str] = frozenset(),
 ) -> Scheduled:
     """The activation tables of a valid component (`clock_problems` finds nothing); ticks: clock
-    name -> the (times, values) of its step stimulus."""
+    name -> the (times, values) of its step stimulus; linked: the inputs a connection drives."""
     inputs = []
     for c in sorted((c for c in clocks if c.causality == "input"), key=lambda c: (c.priority, c.vr)):
         v = c.interval_variability
@@ -235,6 +271,8 @@ def schedule(
             inputs.append(InputClock(c.name, c.vr, TICK_PERIODIC, every, on_grid(c.shift, step)))
         elif v == "countdown":
             inputs.append(InputClock(c.name, c.vr, TICK_COUNTDOWN))
+        elif c.name in linked:
+            inputs.append(InputClock(c.name, c.vr, TICK_LINKED))
         else:
             points = tick_points(*ticks[c.name], start, step)[0] if c.name in ticks else ()
             inputs.append(InputClock(c.name, c.vr, TICK_TRIGGERED, points=points))

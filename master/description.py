@@ -106,13 +106,15 @@ FMI_FUNCTIONS = {
     "enter_continuous_time_mode": (None, "fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
     # FMI 3 Co-Simulation with Event Mode (kernel.h: mk_component.cs_events)
     "enter_step_mode": (None, None, "fmi3EnterStepMode"),
+    # FMI 3 clocks: output clocks whose ticks are counted (kernel.h: mk_component.out_clock_ticks),
+    "get_clock": (None, None, "fmi3GetClock"),
+    "set_clock": (None, None, "fmi3SetClock"),  # triggered input clocks of one in event mode
 }
 
 
 # the kernel's slots of a Scheduled Execution component (kernel.h: mk_scheduled) -> FMI 3 function
 SCHEDULED_FUNCTIONS = {
     "activate_model_partition": "fmi3ActivateModelPartition",
-    "get_clock": "fmi3GetClock",
     "get_interval": "fmi3GetIntervalDecimal",
 }
 

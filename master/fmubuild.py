@@ -251,7 +251,7 @@ def _check_table(name: str, desc: dict[str, Any]) -> None:
     if desc["identifier"] != name:
         problems.append(f'MODEL.identifier is "{desc["identifier"]}" but the folder is "{name}"')
     common = [v["name"] for v in variables[:2]] == ["solver", "internal_step"]
-    if not common and not desc["clocks"]:  # a Scheduled Execution model has no solver
+    if not common and not desc["has_activate"]:  # a Scheduled Execution model has no solver
         problems.append("the table must start with COMMON_VARIABLES(...)")
     feature = _fmi3_feature(desc)
     if feature and not desc["fmi3_only"]:
@@ -391,8 +391,10 @@ def _clock_problems(desc: dict[str, Any]) -> list[str]:
             problems.append(f"clock {c['vr']}: a {c['interval_variability']} clock needs an interval > 0")
         if c["interval_variability"] == "countdown" and not 0 <= c["interval_slot"] < desc["n_reals"]:
             problems.append(f"clock {c['vr']}: a countdown clock needs a real slot for its interval")
-    if desc["clocks"] and not desc["has_activate"]:
-        problems.append("a model with clocks needs MODEL.activate (its partitions)")
+    inputs = {vr for vr, v in enumerate(variables) if v["type"] == "Clock" and v["causality"] == "input"}
+    kinds = {c["interval_variability"] for c in desc["clocks"] if c["vr"] in inputs}
+    if kinds - {"triggered"} and not desc["has_activate"]:  # a Co-Simulation model's: fmi3SetClock
+        problems.append("a model with input clocks other than triggered ones needs MODEL.activate")
     return problems
 
 
@@ -787,7 +789,8 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
     scalars_only = not any(v["dimensions"] for v in variables)
     intermediate = [vr for vr, v in enumerate(variables) if _intermediate_input(v)]
     clocks = {c["vr"]: c for c in desc["clocks"]}
-    if clocks:  # Scheduled Execution alone: the master activates its partitions
+    scheduled = bool(desc["has_activate"])  # partitions: Scheduled Execution alone; else output clocks
+    if scheduled:  # the master activates its partitions
         etree.SubElement(
             root,
             "ScheduledExecution",
@@ -795,7 +798,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             canGetAndSetFMUState="true",
             canSerializeFMUState="true",
         )
-    if not clocks:
+    if not clocks:  # (the layer's Model Exchange has no clocks)
         etree.SubElement(  # as FMI 2.0's
             root,
             "ModelExchange",
@@ -805,7 +808,7 @@ def _model_description_xml3(name: str, desc: dict[str, Any]) -> str:
             canSerializeFMUState="true",
             providesDirectionalDerivatives="true" if scalars_only else "false",
         )
-    if not desc["me_only"] and not clocks:
+    if not desc["me_only"] and not scheduled:
         etree.SubElement(
             root,
             "CoSimulation",

@@ -379,6 +379,8 @@ class RunSummary:
     loops: dict[str, dict[str, float]] = field(default_factory=dict)
     # Scheduled Execution components: "component.clock" -> activations (input clocks), ticks (output)
     clock_ticks: dict[str, int] = field(default_factory=dict)
+    # events handled per component that had any (Model Exchange, FMI 3 Co-Simulation in event mode)
+    events: dict[str, int] = field(default_factory=dict)
     # iterated macro steps (master.runtime.tables.iteration_counts): "sweeps" in all, "max" in one
     # macro step, "macro_steps" iterated; None: explicit coupling
     iterations: dict[str, int] | None = None
@@ -404,7 +406,8 @@ class RunSummary:
             f"backend {self.backend}",
         ]
         for name, n in self.steps.items():
-            lines.append(f"  {name}: {n} steps, {self.fmu_time.get(name, 0.0):.3f} s inside the FMU")
+            events = f", {self.events[name]} events" if name in self.events else ""
+            lines.append(f"  {name}: {n} steps{events}, {self.fmu_time.get(name, 0.0):.3f} s inside the FMU")
         lines.append(f"  master overhead: {self.overhead_per_macro_step * 1e6:.1f} us per macro step")
         if self.iterations is not None:
             it, mean = self.iterations, self.iterations["sweeps"] / max(self.iterations["macro_steps"], 1)

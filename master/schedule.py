@@ -69,7 +69,7 @@ class Clock:
 # what numeric connections carry (fmuinfo.coupling_kind), in the kernel's order of inputs and
 # outputs; String and Binary connections (fmuinfo.TEXTS) have rings and inputs of their own (kernel.h)
 KINDS = ("Real", "Integer", "Boolean", "Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64",
-         "UInt64")  # fmt: skip
+         "UInt64", "Clock")  # fmt: skip
 
 
 def value_kind(v: Variable, fmi_version: str) -> str | None:
@@ -383,7 +383,8 @@ def _components(sc: Scenario, caps: dict[str, Capability], notes: list[str]) -> 
         se = None
         if c.scheduled:  # its input clocks' ticks; triggered ones from step stimuli (master.clocks)
             ticks = {s.variable: (s.times, s.values) for s in sc.stimuli if s.component == c.name}
-            se = schedule_clocks(cap.clocks, start, H / k, ticks)
+            linked = frozenset(cn.end_connector for cn in sc.connections if cn.end_component == c.name)
+            se = schedule_clocks(cap.clocks, start, H / k, ticks, linked)
         comps[c.name] = PlanComponent(c.name, k, H / k, Clock.make(start, H, k), interp, 0, me, se)
     return comps
 

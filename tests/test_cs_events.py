@@ -20,7 +20,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from helpers import run_everywhere, ssd
+from helpers import BACKENDS, run_everywhere, ssd
 
 import master.api as api
 from master.backends.component import SimulationError
@@ -124,6 +124,15 @@ def test_stair_in_event_mode_counts_its_time_events_exactly(step):
         float(step),
     )  # fmt: skip
     assert ref["counter"].tolist() == d["stair.counter"].tolist()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_run_summary_counts_the_events_handled(backend):
+    """stair's time events at 1, 2 and 3 s, each handled once, whether at a point or inside a step."""
+    for step, steps in ((Fraction(1, 10), 30), (Fraction(3, 10), 10)):
+        summary = api.run(single("stair", fmu3("stair"), Fraction(3), step), backend=backend).summary
+        assert summary.steps == {"stair": steps} and summary.events == {"stair": 3}
+        assert f"  stair: {steps} steps, 3 events, " in str(summary)
 
 
 def network(scheme: Scheme, fmi: int = 3, period: float = 1.0, stop: int = 3) -> Scenario:

@@ -102,7 +102,7 @@ def test_what_a_connection_carries_per_fmi_type():
     assert [coupling_kind(t, "3.0") for t in fmi3] == [
         "Real", "Integer", "Boolean", "Int64", "Float32", "Int64", "UInt8", "String", "Binary"
     ]  # fmt: skip
-    assert coupling_kind("Clock", "3.0") is None
+    assert coupling_kind("Clock", "3.0") == "Clock"  # its count of ticks, to a triggered input clock
 
 
 def test_a_step_stimulus_drives_an_integer_input():

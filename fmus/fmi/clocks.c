@@ -7,7 +7,11 @@
  * clock's tick until fmi3GetClock reads it, a countdown clock's interval qualifier until
  * fmi3GetIntervalDecimal reads it (its interval in a real slot). The Clock Activation Mode of
  * Scheduled Execution is the layer's Step Mode: inputs are set and outputs read there. Partitions
- * run one after the other in the caller's thread (no preemption).
+ * run one after the other in the caller's thread (no preemption). A Co-Simulation model without
+ * partitions (no ModelDef.activate) may tick output clocks at its events (model_tick in its update),
+ * which the importer reads with fmi3GetClock in Event Mode or after it, and have triggered input
+ * clocks, which the importer sets in Event Mode (fmi3SetClock) before fmi3UpdateDiscreteStates:
+ * its update reads and clears their slots.
  */
 #include "instance.h"
 
@@ -72,7 +76,7 @@ LayerStatus clock_activate(Instance *inst, const char *function, unsigned vr, do
 }
 
 LayerStatus clock_get(Instance *inst, const char *function, const unsigned vr[], size_t nvr, int ticked[]) {
-    if (!check_state(inst, function, S_STEP)) return LAYER_ERROR;
+    if (!check_state(inst, function, S_STEP | S_EVENT)) return LAYER_ERROR; /* Co-Simulation: after its events */
     for (size_t i = 0; i < nvr; i++)
         if (!clock_of(inst, function, vr[i], C_OUTPUT)) return LAYER_ERROR;
     for (size_t i = 0; i < nvr; i++) {
@@ -80,6 +84,14 @@ LayerStatus clock_get(Instance *inst, const char *function, const unsigned vr[],
         ticked[i] = *slot != 0;
         *slot = 0;
     }
+    return LAYER_OK;
+}
+
+LayerStatus clock_set(Instance *inst, const char *function, const unsigned vr[], size_t nvr, const int active[]) {
+    if (!check_state(inst, function, S_EVENT)) return LAYER_ERROR; /* an input clock ticks in Event Mode */
+    for (size_t i = 0; i < nvr; i++)
+        if (!clock_of(inst, function, vr[i], C_INPUT)) return LAYER_ERROR;
+    for (size_t i = 0; i < nvr; i++) inst->integers[variable_of(inst, vr[i])->slot] = active[i] != 0;
     return LAYER_OK;
 }
 

@@ -116,9 +116,9 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
      * there.  No intermediate variables are offered. */
     (void)resourcePath, (void)visible;
     (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables;
-    if (MODEL.me_only || MODEL.n_clocks) { /* its description has no CoSimulation */
+    if (MODEL.me_only || MODEL.activate) { /* its description has no CoSimulation */
         snprintf(message, sizeof message, "fmi3InstantiateCoSimulation: %s offers %s only", MODEL.identifier,
-                 MODEL.n_clocks ? "Scheduled Execution" : "Model Exchange");
+                 MODEL.activate ? "Scheduled Execution" : "Model Exchange");
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logError", message);
         return NULL;
     }
@@ -165,7 +165,7 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
     const char *name = instanceName ? instanceName : "";
     Instance *inst;
     (void)resourcePath, (void)visible, (void)lockPreemption, (void)unlockPreemption; /* no preemption */
-    if (!MODEL.n_clocks) {
+    if (!MODEL.activate) { /* a model with partitions (a Co-Simulation one may have output clocks) */
         if (logMessage)
             logMessage(instanceEnvironment, fmi3Error, "logError",
                        "fmi3InstantiateScheduledExecution: this FMU offers FMI 3.0 Co-Simulation only");
@@ -411,8 +411,15 @@ fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference vr[], si
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                         const fmi3Clock values[]) {
     GUARD("fmi3SetClock", ANY_STATE);
-    (void)vr, (void)nvr, (void)values;
-    return unsupported(inst, "fmi3SetClock", "the FMU has no clocks");
+    if (!MODEL.n_clocks || MODEL.activate) /* Scheduled Execution: its partitions are activated instead */
+        return unsupported(inst, "fmi3SetClock", MODEL.n_clocks ? "its input clocks tick through their partitions"
+                                                                : "the FMU has no clocks");
+    for (size_t i = 0; i < nvr; i++) { /* one at a time: fmi3Clock is a bool, the layer's an int */
+        int active = values[i] != fmi3ClockInactive;
+        LayerStatus st = clock_set(inst, "fmi3SetClock", &vr[i], 1, &active);
+        if (st != LAYER_OK) return (fmi3Status)st;
+    }
+    return fmi3OK;
 }
 
 /* -------------------------------------------------------- dependencies */

@@ -280,6 +280,9 @@ int event_indicators_now(Instance *inst, double *z);
  * fmi3IntervalQualifier, a countdown's reset to unchanged by the read). */
 LayerStatus clock_activate(Instance *inst, const char *function, unsigned vr, double t);
 LayerStatus clock_get(Instance *inst, const char *function, const unsigned vr[], size_t nvr, int ticked[]);
+/* A Co-Simulation model's input clocks set active (1) or not in Event Mode: the model's update reads
+ * their slots (and clears them) in that event iteration. */
+LayerStatus clock_set(Instance *inst, const char *function, const unsigned vr[], size_t nvr, const int active[]);
 LayerStatus clock_intervals(Instance *inst, const char *function, const unsigned vr[], size_t nvr,
                             double intervals[], int qualifiers[]);
 

@@ -21,6 +21,7 @@ from master.runtime.tables import (
     Memory,
     clock_ticks,
     coupling_errors,
+    event_counts,
     iteration_counts,
     layout,
     loop_stats,
@@ -98,6 +99,10 @@ class InProcessBackend:
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""
         return coupling_errors(self.plan, self.compiled.memory) if self.compiled is not None else {}
+
+    def event_counts(self) -> dict[str, int]:
+        """Events handled per component that had any (`event_counts`)."""
+        return event_counts(self.plan, self.compiled.memory) if self.compiled is not None else {}
 
     def iterations(self) -> dict[str, int] | None:
         """Iterated macro steps: the sweeps (`iteration_counts`), None when the plan does not iterate."""

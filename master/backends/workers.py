@@ -43,6 +43,7 @@ from master.runtime.tables import (
     clock_ticks,
     counter,
     coupling_errors,
+    event_counts,
     iteration_counts,
     layout,
     loop_stats,
@@ -453,6 +454,10 @@ class WorkerBackend:
     def coupling_errors(self) -> dict[str, dict[str, float]]:
         """The error estimate per extrapolated connection (`coupling_errors`)."""
         return coupling_errors(self.plan, self.memory) if self.memory is not None else {}
+
+    def event_counts(self) -> dict[str, int]:
+        """Events handled per component that had any (`event_counts`)."""
+        return event_counts(self.plan, self.memory) if self.memory is not None else {}
 
     def iterations(self) -> dict[str, int] | None:
         """Iterated macro steps: the sweeps (`iteration_counts`), None when the plan does not iterate."""

@@ -329,6 +329,7 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     case MK_UINT32: SET_TYPED(uint32_t)
     case MK_INT64: SET_TYPED(int64_t)
     case MK_UINT64: SET_TYPED(uint64_t)
+    case MK_CLOCK_COUNT: return 0; /* a linked clock ticks through its activation (scheduled.c) */
     default: return 4; /* fmi3Fatal: a kind this kernel does not know */
     }
 }
@@ -349,6 +350,17 @@ static int set_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     }
 #define EXACT_LIMIT (INT64_C(1) << 53)
 
+/* The ticks counted so far of output clocks vrs (MK_CLOCK_COUNT columns; mk_component.out_clock_ticks). */
+static int clock_counts(const mk_component *c, const uint32_t *vrs, int32_t nvr, double *v) {
+    for (int32_t i = 0; i < nvr; i++) {
+        int32_t o = 0;
+        while (o < c->n_out_clocks && c->out_clock_vrs[o] != vrs[i]) o++;
+        if (o == c->n_out_clocks) return 4; /* fmi3Fatal: not a counted clock (the tables') */
+        v[i] = (double)c->out_clock_ticks[o];
+    }
+    return 0;
+}
+
 static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, int32_t nvr, double *v, int32_t n,
                      int32_t *inexact, uint64_t *integer) {
     int st;
@@ -361,6 +373,7 @@ static int get_typed(const mk_component *c, int32_t kind, const uint32_t *vrs, i
     case MK_UINT32: GET_TYPED(uint32_t, false)
     case MK_INT64: GET_TYPED(int64_t, x[i] > EXACT_LIMIT || x[i] < -EXACT_LIMIT)
     case MK_UINT64: GET_TYPED(uint64_t, x[i] > (uint64_t)EXACT_LIMIT)
+    case MK_CLOCK_COUNT: st = clock_counts(c, vrs, nvr, v); break;
     default: st = 4; /* fmi3Fatal: a kind this kernel does not know */
     }
     return st;
@@ -1163,6 +1176,24 @@ static const double *held_from(mk_component *c, const double *u, int32_t m, uint
     return c->scratch;
 }
 
+typedef int fmi3_set_clock(void *, const uint32_t *, size_t, const bool *);
+
+/* An input event's linked input clocks (MK_CLOCK_COUNT inputs of u) whose source's count differs
+ * from the one last set: set active (fmi3SetClock), before the discrete-state updates. */
+static int set_clocks(const mk_component *c, const double *u) {
+    const int32_t typed = c->n_in - c->n_in_typed;
+    const bool active = true;
+    for (int32_t i = c->n_in_real, d = 0; i < c->n_in; i++) {
+        if (!discrete_input(c, i)) continue;
+        int st;
+        if (i >= typed && c->in_kinds[i - typed] == MK_CLOCK_COUNT && u[i] != c->cs_held[d] &&
+            (st = ((fmi3_set_clock *)c->set_clock)(c->instance, &c->in_vrs[i], 1, &active)) > STATUS_OK)
+            return st;
+        d++;
+    }
+    return 0;
+}
+
 /* The event iteration of an FMI 3 Co-Simulation FMU at its current time (point j's step): event mode,
  * its inputs u set there where given (an input event; NULL: those of the step, held), then
  * fmi3UpdateDiscreteStates until no update is needed (at most MK_EVENT_ROUNDS, else MK_EVENT), step
@@ -1173,6 +1204,7 @@ static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, in
     int st = ((fmi_mode *)c->enter_event_mode)(c->instance);
     if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
     if (u && (st = set_inputs(c, u, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    if (u && c->set_clock && (st = set_clocks(c, u)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_SET_CLOCK, st, j);
     if (u) hold_discrete(c, u);
     bool needed = true, end = false;
     for (int32_t round = 0; needed; round++) {
@@ -1185,6 +1217,8 @@ static int32_t cs_event(mk_kernel *k, int32_t ci, const double *u, int64_t j, in
         if (end) return *terminate = 1, MK_DONE;
     }
     (*c->me_event_count)++;
+    int32_t code = count_clocks(k, ci, j);
+    if (code != MK_DONE) return code;
     st = ((fmi_mode *)c->enter_step_mode)(c->instance);
     return st > STATUS_OK ? fail(k, MK_FMI_ERROR, ci, MK_CALL_ENTER_STEP_MODE, st, j) : MK_DONE;
 }

@@ -25,8 +25,11 @@
  * FMI 3 Binaries travel as bytes in text rings of their own, held too (MK_STRING_SLOT). */
 enum {
     MK_REAL_SAMPLE = 0, MK_INTEGER = 1, MK_BOOLEAN = 2, MK_FLOAT32, MK_INT8, MK_UINT8, MK_INT16, MK_UINT16,
-    MK_UINT32, MK_INT64, MK_UINT64, MK_KINDS
+    MK_UINT32, MK_INT64, MK_UINT64, MK_CLOCK_COUNT, MK_KINDS
 };
+/* MK_CLOCK_COUNT: an FMI 3 Clock connection (output clock -> triggered input clock), never set or read
+ * through value calls: the output clock's column holds the ticks counted so far (an exact integer),
+ * and a linked input clock ticks where the count it is given has grown (mk_scheduled). */
 
 /* Recorded columns of other kinds (mk_record): a link's latest coupling error, a String and a Binary
  * (read at the row into the results' text ring). */
@@ -84,7 +87,7 @@ enum {
     /* Scheduled Execution (mk_scheduled) */
     MK_CALL_ACTIVATE_MODEL_PARTITION, MK_CALL_GET_CLOCK, MK_CALL_GET_INTERVAL,
     /* FMI 3 Co-Simulation event mode */
-    MK_CALL_ENTER_STEP_MODE,
+    MK_CALL_ENTER_STEP_MODE, MK_CALL_SET_CLOCK,
 };
 
 /* A counter in memory shared between processes, on its own cache line. Waiters spin briefly, then
@@ -207,9 +210,11 @@ typedef struct {
  * most once per point, the highest-priority one due first after every activation: a periodic one
  * (MK_TICK_PERIODIC) at points phase + i every, a triggered one at its listed points, a countdown one
  * (MK_TICK_COUNTDOWN) at the point the FMU's fmi3GetIntervalDecimal announced after an activation
- * (due: -1 none). Output clocks are read with fmi3GetClock after each point's activations and their
- * ticks counted. */
-enum { MK_TICK_PERIODIC = 0, MK_TICK_COUNTDOWN = 1, MK_TICK_TRIGGERED = 2 };
+ * (due: -1 none), a linked one (MK_TICK_LINKED, a triggered clock connected to an output clock) at
+ * the points where its input slot, the source's tick count, differs from the count it last saw
+ * (seen). Output clocks are read with fmi3GetClock after each point's activations and their
+ * ticks counted (mk_component.out_clock_ticks). */
+enum { MK_TICK_PERIODIC = 0, MK_TICK_COUNTDOWN = 1, MK_TICK_TRIGGERED = 2, MK_TICK_LINKED = 3 };
 #define MK_MAX_CLOCKS 64 /* input clocks of one component */
 
 typedef struct {
@@ -222,11 +227,9 @@ typedef struct {
     const int64_t *points; /* ascending */
     int64_t *due;          /* [n_clocks] */
     int64_t *activations;  /* [n_clocks]: counted */
-    int32_t n_out_clocks;
-    const uint32_t *out_vrs; /* [n_out_clocks] */
-    int64_t *out_ticks;      /* [n_out_clocks]: counted */
-    mk_function activate_model_partition, get_clock, get_interval; /* fmi3ActivateModelPartition, fmi3GetClock,
-                                                                      fmi3GetIntervalDecimal */
+    const int32_t *slot;   /* [n_clocks]: a linked clock's input slot (-1: not linked) */
+    double *seen;          /* [n_clocks]: a linked clock's count when it last ticked */
+    mk_function activate_model_partition, get_interval; /* fmi3ActivateModelPartition, fmi3GetIntervalDecimal */
 } mk_scheduled;
 
 /* One FMU instance and its place in the plan. Pointers stay owned by Python. */
@@ -384,6 +387,15 @@ typedef struct {
     uint8_t *cs_late; /* [step_ratio][n_in]: 1 where a held input's sample of step m is of a later time */
     double *cs_held;
     double *cs_held_saved;
+    /* FMI 3 output clocks whose ticks are counted (MK_CLOCK_COUNT columns): a Scheduled Execution
+     * component's (mk_scheduled's arrays), read after each point's activations; a Co-Simulation
+     * component's in event mode, read with fmi3GetClock after each event iteration (cs_event) */
+    int32_t n_out_clocks;
+    const uint32_t *out_clock_vrs; /* [n_out_clocks] */
+    int64_t *out_clock_ticks;      /* [n_out_clocks]: counted */
+    mk_function get_clock;         /* fmi3GetClock */
+    mk_function set_clock;         /* fmi3SetClock: in an input event, a linked input clock whose source's
+                                      count grew since it was last set (MK_CLOCK_COUNT inputs) */
 } mk_component;
 
 /* One recorded column: a sample from a history, a value read from the FMU at the row through the

@@ -91,12 +91,15 @@ CALLS = (
     "get_interval",
     # FMI 3 Co-Simulation event mode
     "enter_step_mode",
+    "set_clock",
 )
 REAL_SAMPLE, INTEGER, BOOLEAN = range(3)
 KIND_CODES = {"Real": REAL_SAMPLE, "Integer": INTEGER, "Boolean": BOOLEAN}  # schedule.KINDS -> kernel kind
 # FMI 3 values set and read through the calls of their own type: kind by type (an Enumeration: Int64)
-TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10}
-KINDS = 11
+# and Clock connections: an output clock's count of ticks (kernel.h MK_CLOCK_COUNT)
+TYPED = {"Float32": 3, "Int8": 4, "UInt8": 5, "Int16": 6, "UInt16": 7, "UInt32": 8, "Int64": 9, "UInt64": 10,
+         "Clock": 11}  # fmt: skip
+KINDS = 12
 # recorded columns of other kinds (kernel.h mk_record): a link column's latest coupling error, a
 # String and a Binary (read at the row into the text ring)
 COUPLING_ERROR, RECORD_STRING, RECORD_BINARY = KINDS, KINDS + 1, KINDS + 2
@@ -240,11 +243,9 @@ class Scheduled(C.Structure):
         ("points", C.POINTER(_i64)),
         ("due", C.POINTER(_i64)),
         ("activations", C.POINTER(_i64)),
-        ("n_out_clocks", _i32),
-        ("out_vrs", C.POINTER(_u32)),
-        ("out_ticks", C.POINTER(_i64)),
+        ("slot", C.POINTER(_i32)),
+        ("seen", C.POINTER(_f64)),
         ("activate_model_partition", _p),
-        ("get_clock", _p),
         ("get_interval", _p),
     ]
 
@@ -366,6 +367,11 @@ class Component(C.Structure):
         ("cs_late", C.POINTER(C.c_uint8)),
         ("cs_held", C.POINTER(C.c_double)),
         ("cs_held_saved", C.POINTER(C.c_double)),
+        ("n_out_clocks", _i32),
+        ("out_clock_vrs", C.POINTER(_u32)),
+        ("out_clock_ticks", C.POINTER(_i64)),
+        ("get_clock", _p),
+        ("set_clock", _p),
     ]
 
 

@@ -8,10 +8,23 @@ typedef int fmi3_get_interval_decimal(void *, const uint32_t *, size_t, double *
 
 #define FMI3_INTERVAL_CHANGED 2 /* fmi3IntervalQualifier fmi3IntervalChanged */
 
+/* After an event iteration (or a point's activations): component ci's output clocks read with
+ * fmi3GetClock and their ticks counted. */
+static int32_t count_clocks(mk_kernel *k, int32_t ci, int64_t j) {
+    mk_component *c = &k->components[ci];
+    for (int32_t i = 0; i < c->n_out_clocks; i++) {
+        bool ticked = false;
+        int st = ((fmi3_get_clock *)c->get_clock)(c->instance, &c->out_clock_vrs[i], 1, &ticked);
+        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_CLOCK, st, j);
+        c->out_clock_ticks[i] += ticked;
+    }
+    return MK_DONE;
+}
+
 /* Whether input clock i ticks at point j. */
 static bool se_due(const mk_scheduled *s, int32_t i, int64_t j) {
     if (s->tick[i] == MK_TICK_PERIODIC) return j >= s->phase[i] && (j - s->phase[i]) % s->every[i] == 0;
-    if (s->tick[i] == MK_TICK_COUNTDOWN) return s->due[i] == j;
+    if (s->tick[i] == MK_TICK_COUNTDOWN || s->tick[i] == MK_TICK_LINKED) return s->due[i] == j;
     int64_t lo = s->first[i], hi = s->first[i + 1]; /* a triggered clock: its points, ascending */
     while (lo < hi) {
         const int64_t mid = lo + (hi - lo) / 2;
@@ -66,13 +79,7 @@ static int32_t se_activate(mk_kernel *k, int32_t ci, int64_t j) {
         if (code != MK_DONE) return code;
         i = 0;
     }
-    for (int32_t i = 0; i < s->n_out_clocks; i++) {
-        bool ticked = false;
-        int st = ((fmi3_get_clock *)s->get_clock)(c->instance, &s->out_vrs[i], 1, &ticked);
-        if (st > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, MK_CALL_GET_CLOCK, st, j);
-        s->out_ticks[i] += ticked;
-    }
-    return MK_DONE;
+    return count_clocks(k, ci, j);
 }
 
 /* Communication step m of a Scheduled Execution component, from point j to j + 1 (kernel.h:
@@ -83,12 +90,15 @@ static int32_t se_step(mk_kernel *k, int32_t ci, const double *u, int32_t m, int
     const int64_t t0 = now_ns();
     int32_t call = 0, code;
     int st;
-    if (c->n_in && (st = set_inputs(c, u + (c->n_values > 1 ? c->n_in : 0), &call)) > STATUS_OK)
-        return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    const double *now = u + (c->n_values > 1 ? c->n_in : 0);
+    if (c->n_in && (st = set_inputs(c, now, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
     const int32_t n_text_in = c->n_in_string + c->n_in_binary;
     if (n_text_in && (st = set_texts(c, c->in_string_vrs, c->string_u + (size_t)m * n_text_in * MK_STRING_SLOT,
                                      c->n_in_string, c->n_in_binary, &call)) > STATUS_OK)
         return fail(k, MK_FMI_ERROR, ci, call, st, j);
+    mk_scheduled *s = c->scheduled;
+    for (int32_t i = 0; i < s->n_clocks; i++) /* a linked clock ticks where its source's count grew */
+        if (s->tick[i] == MK_TICK_LINKED && now[s->slot[i]] != s->seen[i]) s->due[i] = j + 1, s->seen[i] = now[s->slot[i]];
     if ((code = se_activate(k, ci, j + 1)) != MK_DONE) return code;
     double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
     if (c->n_out && c->reads[m] && (code = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return code;

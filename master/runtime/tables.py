@@ -25,7 +25,7 @@ from master.backends.component import (
     samples_read,
     string_output_names,
 )
-from master.clocks import TICK_PERIODIC, every_from_fmu
+from master.clocks import TICK_LINKED, TICK_PERIODIC, every_from_fmu
 from master.coupling import weights
 from master.description import FMI_FUNCTIONS, SCHEDULED_FUNCTIONS, intermediate_inputs, lookup
 from master.fmu import Fmu, FmuError
@@ -474,7 +474,7 @@ class CompiledPlan:
         if asks:
             self._intermediate(c, fmu, in_names[: c.n_in_real])
         if pc.scheduled is not None:
-            self._scheduled(c, pc, fmu)
+            self._scheduled(c, pc, fmu, in_names)
         if fmu.event_mode:
             self._event_mode(c, pc, fmu, in_kinds)
 
@@ -490,7 +490,7 @@ class CompiledPlan:
         iu.values = _ptr(self._array(np.zeros(len(slots)), np.float64), C.c_double)
         c.intermediate = C.pointer(iu)
 
-    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu) -> None:
+    def _scheduled(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Scheduled Execution component's clock tables (kernel.h: mk_scheduled, master.clocks)."""
         se = pc.scheduled
         t = native.Scheduled()
@@ -507,9 +507,11 @@ class CompiledPlan:
         t.due = _ptr(self._array(np.full(len(ins), -1), np.int64), C.c_int64)
         first = clock_names(self.plan).index(f"{pc.name}.{ins[0].name}") if ins else 0  # in shared memory
         t.activations = _ptr(self.memory["clock_ticks"][first:], C.c_int64)
-        t.n_out_clocks = len(se.outputs)
-        t.out_vrs = self._vrs([ck.vr for ck in se.outputs])
-        t.out_ticks = _ptr(self.memory["clock_ticks"][first + len(ins) :], C.c_int64)
+        slots = [in_names.index(ck.name) if ck.tick == TICK_LINKED else -1 for ck in ins]  # source's count
+        t.slot = _ptr(self._array(slots, np.int32), C.c_int32)
+        t.seen = _ptr(self._array(np.zeros(len(ins)), np.float64), C.c_double)
+        out_ticks = self.memory["clock_ticks"][first + len(ins) :]
+        self._out_clocks(c, pc, fmu, [ck.vr for ck in se.outputs], out_ticks)
         for slot, name in SCHEDULED_FUNCTIONS.items():
             f = _exported(fmu, name)
             if f is None:
@@ -517,6 +519,12 @@ class CompiledPlan:
             setattr(t, slot, f)
         self._keep.append(t)
         c.scheduled = C.pointer(t)
+
+    def _out_clocks(self, c: native.Component, pc: PlanComponent, fmu: Fmu, vrs: list[int], ticks) -> None:
+        """The output clocks whose ticks the kernel counts into `ticks` (kernel.h: out_clock_ticks)."""
+        if vrs:
+            _require(fmu, "get_clock", pc.name)
+        c.n_out_clocks, c.out_clock_vrs, c.out_clock_ticks = len(vrs), self._vrs(vrs), _ptr(ticks, C.c_int64)
 
     def _event_mode(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_kinds: list[str]) -> None:
         """An FMI 3 Co-Simulation component in event mode (kernel.h: mk_component.cs_events): its
@@ -531,6 +539,9 @@ class CompiledPlan:
         c.cs_held = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.cs_held_saved = _ptr(self._array(np.zeros(max(held, 1)), np.float64), C.c_double)
         c.me_event_count = _ptr(self.memory["steps"][self.names.index(pc.name), 1:], C.c_int64)
+        outs = [v for v in fmu.md.modelVariables if v.causality == "output"]
+        clocks = [v.valueReference for v in outs if v.type == "Clock"]  # read after its events
+        self._out_clocks(c, pc, fmu, clocks, self._array(np.zeros(len(clocks)), np.int64))
 
     def _model_exchange(self, c: native.Component, pc: PlanComponent, fmu: Fmu, in_names: list[str]) -> None:
         """A Model Exchange component's tables (kernel.h: mk_component.me): its method, its internal
@@ -1230,6 +1241,13 @@ def coupling_errors(plan: Plan, memory: Memory) -> dict[str, dict[str, float]]:
                     "rms": float(np.sqrt(row[1] / row[2]) / span),
                 }
     return out
+
+
+def event_counts(plan: Plan, memory: Memory) -> dict[str, int]:
+    """Events handled per component that had any: a Model Exchange or FMI 3 Co-Simulation
+    component in event mode (kernel.h: me_event_count, beside its steps)."""
+    steps = memory["steps"]
+    return {pc.name: int(steps[i, 1]) for i, pc in enumerate(plan.components) if steps[i, 1]}
 
 
 def iteration_counts(plan: Plan, memory: Memory) -> dict[str, int] | None:

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from fractions import Fraction
 
-from master.clocks import scheduled_problems, stimulus_problems
+from master.clocks import EVENTS, SCHEDULED, link_problem, read_clocks, scheduled_problems, stimulus_problems
 from master.description import Description, Variable, lookup, typed
 
 from . import fmuinfo, transforms
@@ -62,6 +62,7 @@ def check(sc: Scenario, fmus: Mapping[str, Description] | None = None) -> list[P
     _record(sc, infos, at)
     _model_exchange(sc, infos, at)
     _scheduled(sc, infos, at)
+    _clock_links(sc, infos, at)
     _iteration(sc, infos, at)
     return problems.items
 
@@ -88,6 +89,41 @@ def _scheduled(sc: Scenario, infos: Infos, at: At) -> None:
         step = Fraction(sc.macro_step) / c.step_ratio
         for problem in scheduled_problems(se.clocks, step):
             at(f"component {c.name}", problem)
+
+
+def _clock_links(sc: Scenario, infos: Infos, at: At) -> None:
+    modes = {c.name: clock_mode(infos.get(c.name), c.scheduled, c.event_mode) for c in sc.components}
+    for cn in sc.connections:
+        ends = (cn.start_component, cn.start_connector), (cn.end_component, cn.end_connector)
+        problem = clock_link_problem(ends, infos, modes, sc.iteration is not None)
+        if problem:
+            at(f"connection {ends[0][0]}.{ends[0][1]} -> {ends[1][0]}.{ends[1][1]}", problem)
+
+
+def clock_mode(info: Description | None, scheduled: bool, event_mode: bool) -> str:
+    """How a component's clocks tick (master.clocks.link_problem): SCHEDULED, EVENTS or ""."""
+    cs = info.co_simulation if info is not None else None
+    return SCHEDULED if scheduled else EVENTS if event_mode and cs is not None and cs.event_mode else ""
+
+
+def clock_link_problem(ends, infos: Infos, modes: Mapping[str, str], iterated: bool) -> str | None:
+    """Why a Clock connection ((component, output clock), (component, input clock)) cannot carry
+    ticks (modes: component -> `clock_mode`; master.clocks.link_problem; iterated: mm:Iteration).
+    None if it can, or if it is not a connection of two clocks (a Clock to a non-clock is a type
+    mismatch: `connection_problem`)."""
+    if any(infos.get(comp) is None or comp not in modes for comp, _ in ends):
+        return None
+    variables = [infos[comp].variables.get(name) for comp, name in ends]
+    if not all(v is not None and v.fmi_type == "Clock" for v in variables):
+        return None
+
+    def clock(comp: str, name: str):
+        return next((k for k in read_clocks(infos[comp].path) if k.name == name), None)
+
+    problem = link_problem(clock(*ends[0]), clock(*ends[1]), tuple(modes[comp] for comp, _ in ends))
+    if problem is None and iterated:  # the kernel's counts of ticks are not part of the saved states
+        return "a Clock connection does not run with iterated macro steps (mm:Iteration)"
+    return problem
 
 
 def _clock_stimulus(sc: Scenario, s, clock, where: str, at: At) -> None:

@@ -41,6 +41,7 @@ COUPLED = {
     **{t: t for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")},
     "String": "String",
     "Binary": "Binary",
+    "Clock": "Clock",  # an output clock's count of ticks to a triggered input clock (master.clocks)
 }
 CONTINUOUS = ("Real", "Float32")  # extrapolated by the consumer's order; the other kinds are held
 TEXTS = ("String", "Binary")  # the kinds carried as bytes, not as numbers: never stimulated
@@ -51,7 +52,7 @@ STIMULATED = "numeric, Boolean and Enumeration"
 def coupling_kind(fmi_type: str, fmi_version: str) -> str | None:
     """What a connection of a variable of this type carries (`COUPLED`): "Real", "Integer",
     "Boolean", "String", or in FMI 3 "Float32", "Int8" ... "UInt64" (an Enumeration: "Int64"; in
-    FMI 1 and 2 an Enumeration is an "Integer") and "Binary"; None if it cannot be connected (a Clock).
+    FMI 1 and 2 an Enumeration is an "Integer") and "Binary", "Clock" (its count of ticks: master.clocks).
     Kinds in `CONTINUOUS` are extrapolated by the consumer's order, the others held between
     communication points (order 0). A String or Binary connection carries at most 1023 bytes
     (kernel.h: MK_TEXT_MAX): a longer output stops the run."""
@@ -226,7 +227,7 @@ def recordable(fmi_type: str, fmi_version: str, shape: tuple[int, ...] = ()) -> 
     connections carry (in FMI 3 every numeric type and Enumeration, each read through its own
     call, and Binary; Strings and Binaries of at most 1023 bytes, scalars only)."""
     kind = coupling_kind(fmi_type, fmi_version)
-    return kind is not None and not (shape and kind in TEXTS)
+    return kind not in (None, "Clock") and not (shape and kind in TEXTS)
 
 
 def record_problem(

@@ -20,6 +20,7 @@ from lxml import etree
 from master.description import FLOATS, Description, Variable
 
 from . import archive, bindings, defaults, fmuinfo, loops, settings, systems, transforms, xmlio
+from .check import clock_link_problem, clock_mode
 from .check import times as time_problems
 from .context import Comp, Context
 from .fmuinfo import SourceError
@@ -178,6 +179,16 @@ def _read(
         for name, h in setup.internal_step.items():  # unless a binding chose one
             params.setdefault(name, {}).setdefault(settings.INTERNAL_STEP, float(h))
     loops.check(ctx, links)
+    if setup is not None:  # Clock connections: what their ends' components can do (check.clock_link_problem)
+        infos = {n: c.info for n, c in ctx.comps.items()}
+        modes = {
+            n: clock_mode(c.info, n in setup.scheduled, setup.event_mode.get(n, True))
+            for n, c in ctx.comps.items()
+        }
+        for ends, elem in links:
+            problem = clock_link_problem((ends[:2], ends[2:]), infos, modes, setup.iteration is not None)
+            if problem:
+                ctx.at(elem, problem)
     if problems.items or setup is None or times is None:
         return None
 
