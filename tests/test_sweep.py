@@ -219,9 +219,10 @@ def test_cli_sweep_writes_the_table_and_refuses_bad_input_in_one_line(tmp_path):
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=1:2:2",
            "--vary", "mass2.m=1:2:2", "--metric", "peak=max(abs(mass1.x))", "--workers", "2",
            "--stop-time", "1", "--out", str(out), "--plot", str(png)]  # fmt: skip
-    unreachable = ["--vary", "mass1.c=1:2:2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path)]
+    far = tmp_path / "far"
+    unreachable = cmd[:3] + ["--vary", "mass1.c=1:2:2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(far)]
     # it waits out its 10 s connect timeout meanwhile, next to the other runs
-    with started(cmd[:3] + unreachable, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    with started(unreachable, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                  text=True) as waiting:  # fmt: skip
         done = finished(cmd, 300, cwd=tmp_path)
         assert done.returncode == 0, done.stderr
@@ -266,9 +267,9 @@ def test_the_executor_keeps_going_past_an_item_that_raises_or_kills_its_worker()
     assert_no_children()
 
 
-def _stopped(cmd: list[str], out: Path, sig: int, cwd: Path) -> int:
-    """Runs the sweep `cmd` until it (re)writes its table, stops it with `sig`; the cases it kept,
-    after checking that it stopped as that signal says and left no process behind."""
+def _stopped(cmd: list[str], out: Path, sig: int, cwd: Path) -> set[str]:
+    """Runs the sweep `cmd` until it (re)writes its table, stops it with `sig`; the cases it kept
+    (their keys), after checking that it stopped as that signal says and left no process behind."""
     table = out / "cases.parquet"
     before = table.stat().st_mtime_ns if table.exists() else None
     with started(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
@@ -287,18 +288,20 @@ def _stopped(cmd: list[str], out: Path, sig: int, cwd: Path) -> int:
     assert all(r["status"] == "ok" for r in kept)
     _, alive = psutil.wait_procs(helpers, timeout=10)
     assert alive == []
-    return len(kept)
+    return {r["case"] for r in kept}
 
 
 def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(tmp_path):
     """Stopped by SIGINT, the same command goes on and is stopped by SIGTERM, and once more runs the
-    rest: each stop keeps the cases finished so far, each run skips those done earlier."""
+    rest: each stop keeps the cases finished so far (the second those of the first too), and the
+    last run does only the cases not done earlier."""
     out = tmp_path / "sw"
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:50", "--vary",
            "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
     first = _stopped(cmd, out, signal.SIGINT, tmp_path)
-    assert 0 < first < 100
+    assert 0 < len(first) < 100
     second = _stopped(cmd, out, signal.SIGTERM, tmp_path)
-    assert first < second < 100
+    assert first < second and len(second) < 100
     done = finished(cmd, 300, cwd=tmp_path)
-    assert f"100 cases: {100 - second} run (0 failed), {second} done earlier" in done.stdout, done.stderr
+    n = len(second)
+    assert f"100 cases: {100 - n} run (0 failed), {n} done earlier" in done.stdout, done.stderr
