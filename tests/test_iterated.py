@@ -240,7 +240,7 @@ def test_tune_tries_iterated_coupling_and_counts_its_sweeps():
 
     sc = dataclasses.replace(set_b(Fraction(1, 20), stop=Fraction(20), iteration=None),
                              record=(("mass1", "x"), ("mass2", "x")))  # fmt: skip
-    result = tune(sc, 1e-2, repeats=1)
+    result = tune(sc, 1e-2, pilot_time=Fraction(5), repeats=1)  # a quarter of the 20 s: quicker
     iterated = [ch for ch in result.choices if ch.trial.config.iterated]
     assert iterated and all(ch.trial.sweeps >= 1 for ch in iterated)
     scene = bench.apply(sc, result.profile, iterated[0].trial.config)

@@ -219,19 +219,29 @@ def test_cli_sweep_writes_the_table_and_refuses_bad_input_in_one_line(tmp_path):
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=1:2:2",
            "--vary", "mass2.m=1:2:2", "--metric", "peak=max(abs(mass1.x))", "--workers", "2",
            "--stop-time", "1", "--out", str(out), "--plot", str(png)]  # fmt: skip
-    done = finished(cmd, 300, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
-    assert "4 cases: 4 run (0 failed), 0 done earlier" in done.stdout
-    assert len(pq.read_table(out / "cases.parquet")) == 4 and png.stat().st_size > 0
-    for bad, words in [
-        (["--vary", "mass1.nope=1:2:2"], "component mass1 has no variable 'nope'"),
-        (["--vary", "mass1.x=1:2:2"], "causality output"),
-        (["--vary", "mass1.c=1:2:2", "--metric", "p=open('f')"], "unknown function open"),
-        (["--vary", "mass1.c=1:2:2", "--scheduler", "tcp://127.0.0.1:1"], "cannot connect"),
-    ]:
-        done = finished(cmd[:3] + bad + ["--out", str(tmp_path / "bad")], 120, cwd=tmp_path)
-        assert done.returncode == 1 and words in done.stderr, done.stderr
-        assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    far = tmp_path / "far"
+    unreachable = cmd[:3] + ["--vary", "mass1.c=1:2:2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(far)]
+    # it waits out its 10 s connect timeout meanwhile, next to the other runs
+    with started(unreachable, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                 text=True) as waiting:  # fmt: skip
+        done = finished(cmd, 300, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+        assert "4 cases: 4 run (0 failed), 0 done earlier" in done.stdout
+        assert len(pq.read_table(out / "cases.parquet")) == 4 and png.stat().st_size > 0
+        for bad, words in [
+            (["--vary", "mass1.nope=1:2:2"], "component mass1 has no variable 'nope'"),
+            (["--vary", "mass1.x=1:2:2"], "causality output"),
+            (["--vary", "mass1.c=1:2:2", "--metric", "p=open('f')"], "unknown function open"),
+        ]:
+            done = finished(cmd[:3] + bad + ["--out", str(tmp_path / "bad")], 120, cwd=tmp_path)
+            _assert_one_line_error(done.returncode, done.stderr, words)
+        _, err = waiting.communicate(timeout=120)
+    _assert_one_line_error(waiting.returncode, err, "cannot connect")
+
+
+def _assert_one_line_error(returncode: int, stderr: str, words: str) -> None:
+    assert returncode == 1 and words in stderr, stderr
+    assert "Traceback" not in stderr and len(stderr.strip().splitlines()) == 1
 
 
 def _flaky(suffix: str, item: str) -> str:
@@ -257,24 +267,41 @@ def test_the_executor_keeps_going_past_an_item_that_raises_or_kills_its_worker()
     assert_no_children()
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(tmp_path, sig):
-    out = tmp_path / "sw"
-    cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:30", "--vary",
-           "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
-    with started(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
+def _stopped(cmd: list[str], out: Path, sig: int, cwd: Path) -> set[str]:
+    """Runs the sweep `cmd` until it (re)writes its table, stops it with `sig`; the cases it kept
+    (their keys), after checking that it stopped as that signal says and left no process behind."""
+    table = out / "cases.parquet"
+    before = table.stat().st_mtime_ns if table.exists() else None
+    with started(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
         deadline = time.monotonic() + 120
-        while not (out / "cases.parquet").exists() and time.monotonic() < deadline:
-            time.sleep(0.1)  # the table is first written 2 s after the first case
+        while time.monotonic() < deadline:  # the table is written 2 s after the first case, atomically
+            if table.exists() and table.stat().st_mtime_ns != before:
+                break
+            time.sleep(0.1)
         helpers = psutil.Process(proc.pid).children(recursive=True)  # the Dask cluster, the runs' workers
         assert helpers
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + sig, err
     assert "interrupted" in err and "Traceback" not in err
-    kept = pq.read_table(out / "cases.parquet").to_pylist()
-    assert 0 < len(kept) < 60 and all(r["status"] == "ok" for r in kept)
+    kept = pq.read_table(table).to_pylist()
+    assert all(r["status"] == "ok" for r in kept)
     _, alive = psutil.wait_procs(helpers, timeout=10)
     assert alive == []
+    return {r["case"] for r in kept}
+
+
+def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(tmp_path):
+    """Stopped by SIGINT, the same command goes on and is stopped by SIGTERM, and once more runs the
+    rest: each stop keeps the cases finished so far (the second those of the first too), and the
+    last run does only the cases not done earlier."""
+    out = tmp_path / "sw"
+    cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:50", "--vary",
+           "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
+    first = _stopped(cmd, out, signal.SIGINT, tmp_path)
+    assert 0 < len(first) < 100
+    second = _stopped(cmd, out, signal.SIGTERM, tmp_path)
+    assert first < second and len(second) < 100
     done = finished(cmd, 300, cwd=tmp_path)
-    assert f"60 cases: {60 - len(kept)} run (0 failed), {len(kept)} done earlier" in done.stdout, done.stderr
+    n = len(second)
+    assert f"100 cases: {100 - n} run (0 failed), {n} done earlier" in done.stdout, done.stderr
