@@ -19,6 +19,7 @@ the machine may be shared.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import tempfile
@@ -26,9 +27,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+import psutil
 
 import master
 import master.api as api
+from master.sweeps import executor
 from master.sweeps.cases import parse_vary, points
 
 SCENE = Path(__file__).resolve().parent.parent / "tests" / "scenarios" / "oscillator" / "oscillator.ssd"
@@ -48,6 +51,30 @@ def loop(cases: list[dict], stop_time: str) -> tuple[float, float, list[dict]]:
         d = r.data
         stats.append({c: (d[c][-1], np.min(d[c]), np.max(d[c])) for c in d.dtype.names if c != "time"})
     return time.perf_counter() - t0, stepping, stats
+
+
+def tree_cpu() -> float:
+    """Processor s of this process (client, scheduler) and its descendants alive now (the Dask
+    workers, their worker processes): unlike wall time, little changed by other work on the machine."""
+    total = 0.0
+    for p in [psutil.Process(), *psutil.Process().children(recursive=True)]:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            t = p.cpu_times()
+            total += t.user + t.system
+    return total
+
+
+cases_cpu: list[float] = []  # processor s of each sweep's cases: Executor.map, first task to last result
+_map = executor.Executor.map
+
+
+def _measured_map(self, *args):
+    c0 = tree_cpu()
+    yield from _map(self, *args)
+    cases_cpu.append(tree_cpu() - c0)
+
+
+executor.Executor.map = _measured_map
 
 
 def sweep(vary: list[str], workers: int, stop_time: str, reference: list[dict]) -> float:
@@ -76,7 +103,7 @@ def main() -> None:
     n = len(cases)
     print(f"{cpus} usable CPUs; {n} oscillator cases, {a.stop_time} s each; {load()}")
     sizes = sorted(set(a.workers) | {1})
-    loops, steps, sweeps = [], [], {w: [] for w in sizes}
+    loops, steps, sweeps, cpus = [], [], {w: [] for w in sizes}, {w: [] for w in sizes}
     for k in range(a.repeat):
         print(f"round {k + 1}:")
         if k < max(a.loops, 1):
@@ -90,15 +117,18 @@ def main() -> None:
             before = load()
             t = sweep(vary, w, a.stop_time, reference)
             sweeps[w].append(t)
+            cpus[w].append(cases_cpu[-1])
             print(f"  sweep, {w} worker{'s' if w > 1 else ' '}: {t:.2f} s = {1e3 * t / n:.2f} ms per case, "
-                  f"{min(loops) / t:.1f}x the loop, bit-identical ({before})")  # fmt: skip
+                  f"{min(loops) / t:.1f}x the loop, bit-identical, processors {1e3 * cases_cpu[-1] / n:.2f} "
+                  f"ms per case ({before})")  # fmt: skip
     best = {w: min(ts) for w, ts in sweeps.items()}
     loop_best, step_case = min(loops), statistics.median(steps) / n
     print(f"best of {a.repeat} rounds, the loop's of {len(loops)} (load now {os.getloadavg()[0]:.2f}):")
     print(f"  loop of master.run {1e3 * loop_best / n:.1f} ms per case")
     for w in sizes:
         print(f"  {w} worker{'s' if w > 1 else ' '}: {1e3 * best[w] / n:.2f} ms per case, "
-              f"{loop_best / best[w]:.1f}x the loop, {best[1] / best[w]:.2f}x one worker")  # fmt: skip
+              f"{loop_best / best[w]:.1f}x the loop, {best[1] / best[w]:.2f}x one worker; processors "
+              f"{1e3 * statistics.median(cpus[w]) / n:.2f} ms per case (median)")  # fmt: skip
     overhead = best[1] / n - step_case
     print(f"  overhead per case on one worker: {1e3 * overhead:.2f} ms "
           f"({1e3 * best[1] / n:.2f} ms per case less {1e3 * step_case:.2f} ms of stepping)")  # fmt: skip
