@@ -96,12 +96,16 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="rounds of the sweeps")
     ap.add_argument("--loops", type=int, default=2, help="rounds that time the loop too (at least 1)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--task-s", type=float, help="the executor's TASK_S, s a batch of cases should last")
     a = ap.parse_args()
+    if a.task_s is not None:
+        executor.TASK_S = a.task_s
     cpus = len(os.sched_getaffinity(0))
     vary = [f"mass1.c=0.5:2:{a.cases // 10}", "mass2.m=0.5:2:10"]
     cases = points([parse_vary(v, "grid") for v in vary], "grid", None, None)
     n = len(cases)
-    print(f"{cpus} usable CPUs; {n} oscillator cases, {a.stop_time} s each; {load()}")
+    print(f"{cpus} usable CPUs; {n} oscillator cases, {a.stop_time} s each; batches of "
+          f"{getattr(executor, 'TASK_S', '?')} s; {load()}")  # fmt: skip
     sizes = sorted(set(a.workers) | {1})
     loops, steps, sweeps, cpus = [], [], {w: [] for w in sizes}, {w: [] for w in sizes}
     for k in range(a.repeat):

@@ -21,7 +21,7 @@ from uuid import uuid4
 
 from master.sweeps.cases import SweepError
 
-TASK_S = 0.05  # s a task should last: Dask's few ms per task weigh little, a lost worker loses little
+TASK_S = 0.2  # s a task should last: Dask's few ms per task weigh little, a lost worker loses little
 MAX_BATCH = 64  # items per task at most
 AHEAD = 2  # tasks in flight per worker thread: the next one waits in the worker while one runs
 POLL_S = 0.02  # how often a held stop signal is looked at while no result comes
