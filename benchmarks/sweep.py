@@ -3,7 +3,7 @@ clusters of 1 and 2 workers, measured side by side in one run (not a test: numbe
 machine).
 
     .venv/bin/python benchmarks/sweep.py [--cases 200] [--stop-time 10] [--repeat 3] [--loops 2]
-                                         [--workers 1 2]
+                                         [--workers 1 2] [--task-s 0.2]
 
 The first `--loops` rounds time the loop (each case a `master.run` of its own, serial backend: a
 worker process started, the FMUs extracted and loaded, the run, the process ended); every round
@@ -12,8 +12,9 @@ worker process, master.backends.session) and checks that its final, min and max 
 recorded column equal the loop's bit for bit. It prints the speed-ups (the issue's targets: >= 5x the loop
 on one worker, >= 1.8x one worker's rate on two workers with two cores) and the overhead per case
 of one worker: its time per case less the kernel's stepping time per case (the loop's runs say
-how long the stepping takes; target < 2 ms). The load average is printed before every measurement:
-the machine may be shared.
+how long the stepping takes; target < 2 ms), and the processor time per case of each sweep (all its
+processes; less changed by other work than wall time). The load average is printed before every
+measurement: the machine may be shared.
 """
 
 from __future__ import annotations
