@@ -267,6 +267,43 @@ def test_the_executor_keeps_going_past_an_item_that_raises_or_kills_its_worker()
     assert_no_children()
 
 
+def test_a_batch_lasts_about_task_s_starts_at_one_item_and_shrinks_at_the_end():
+    from master.sweeps.executor import MAX_BATCH, TASK_S, batch_size
+
+    assert batch_size(1000, None, 2) == 1  # no item's time known yet: every worker starts at once
+    for per_item in (TASK_S / 7, TASK_S / 30):
+        k = batch_size(1000, per_item, 2)
+        assert k * per_item <= TASK_S < (k + 1) * per_item  # short items: a task lasts TASK_S
+    assert batch_size(1000, 3 * TASK_S, 2) == 1  # long items: one per task
+    assert batch_size(10**6, 1e-9, 2) == MAX_BATCH  # never more than a lost worker may lose
+    left, sizes = 1000, []
+    while left:  # the whole sweep at one speed: each batch at most a quarter of those left on 2 threads
+        sizes.append(batch_size(left, 1e-6, 2))
+        assert 1 <= sizes[-1] <= max(1, left // 4)
+        left -= sizes[-1]
+    assert sizes[0] == MAX_BATCH and sizes[-3:] == [1, 1, 1]
+
+
+def _tagged(tag: str, item: tuple[int, float]) -> tuple[str, int]:
+    time.sleep(item[1])
+    return tag, item[0]
+
+
+def test_the_executor_runs_every_item_once_as_its_batches_change_size(monkeypatch):
+    from master.sweeps import executor
+
+    sizes: list[int] = []
+    rule = executor.batch_size
+    monkeypatch.setattr(executor, "batch_size", lambda *a: sizes.append(rule(*a)) or sizes[-1])
+    items = [(i, 0.0 if i < 150 else 0.002) for i in range(300)]  # the items' time changes midway
+    with executor.Executor(workers=2) as ex:
+        got = list(ex.map(_tagged, items, "x"))
+    assert sorted(i for i, _ in got) == list(range(300))  # each item once
+    assert all(outcome == ("x", i) for i, outcome in got)  # under its own index
+    assert sum(sizes) == 300 and sizes[0] == 1 and len(set(sizes)) > 2
+    assert_no_children()
+
+
 def _stopped(cmd: list[str], out: Path, sig: int, cwd: Path) -> set[str]:
     """Runs the sweep `cmd` until it (re)writes its table, stops it with `sig`; the cases it kept
     (their keys), after checking that it stopped as that signal says and left no process behind."""

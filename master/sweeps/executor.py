@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import os
+import queue
 import signal
 import threading
 import time
@@ -20,9 +21,10 @@ from uuid import uuid4
 
 from master.sweeps.cases import SweepError
 
-TASKS_PER_WORKER = 16  # at least this many tasks per worker thread: the last ones keep every worker busy
-MAX_BATCH = 8  # items per task at most: a lost worker loses no more, progress stays fine-grained
-POLL_S = 0.02  # how often the results and a held stop signal are looked at
+TASK_S = 0.2  # s a task should last: Dask's few ms per task weigh little, a lost worker loses little
+MAX_BATCH = 64  # items per task at most
+AHEAD = 2  # tasks in flight per worker thread: the next one waits in the worker while one runs
+POLL_S = 0.02  # how often a held stop signal is looked at while no result comes
 
 
 def usable_cpus() -> int:
@@ -128,44 +130,59 @@ class Executor:
     def map(self, fn: Callable, items: Sequence, *shared: Any) -> Iterator[tuple[int, Any]]:
         """fn(*shared, item) for every item, as the results come: (index, result), or (index,
         exception) for an item that raised or that the cluster could not run (e.g. its worker
-        died). `shared` objects travel to each worker once. Short items travel in batches (at
-        least TASKS_PER_WORKER tasks per worker thread, at most MAX_BATCH items each): every Dask
-        task costs a few ms of the scheduler's, the client's and the worker's processors."""
-        from distributed import as_completed
-
+        died). `shared` objects travel to each worker once. Items travel in batches, `batch_size`
+        items each, sent as results come back (AHEAD tasks in flight per worker thread): every
+        Dask task costs a few ms of the scheduler's, the client's and the worker's processors."""
         # a task that returns them, not scattered data: the scheduler can make it again when a worker
         # holding it dies (scattered data would be lost, and every task needing it with it)
         held = self.client.submit(_same, shared, pure=False, key=f"shared-{uuid4().hex}")
-        k = max(1, min(MAX_BATCH, len(items) // (max(self.size, 1) * TASKS_PER_WORKER)))
-        batches = [list(range(i, min(i + k, len(items)))) for i in range(0, len(items), k)]
         name = getattr(fn, "__name__", "task")
-        futures = {
-            self.client.submit(
-                _in_worker,
-                fn,
-                held,
-                [items[i] for i in batch],
-                pure=False,
-                key=f"{name}-{batch[0]}-{uuid4().hex}",
-            ): batch
-            for batch in batches
-        }
-        done = as_completed(futures)
+        futures: dict[Any, list[int]] = {}
+        done: queue.SimpleQueue = queue.SimpleQueue()  # futures as they finish (Dask's callback thread)
+        sent, per_item = 0, None  # items sent; s per item in the last task that came back
+
+        def send() -> None:
+            nonlocal sent
+            threads = max(self.size, 1)
+            while sent < len(items) and len(futures) < AHEAD * threads:
+                batch = list(range(sent, sent + batch_size(len(items) - sent, per_item, threads)))
+                sent += len(batch)
+                future = self.client.submit(
+                    _in_worker, fn, held, [items[i] for i in batch], pure=False,
+                    key=f"{name}-{batch[0]}-{uuid4().hex}",
+                )  # fmt: skip
+                futures[future] = batch
+                future.add_done_callback(done.put)
+
         try:
-            while not done.is_empty():
+            send()
+            while futures:
                 self._raise_held()
-                ready = done.next_batch(block=False)
-                if not ready:
-                    time.sleep(POLL_S)
-                for future in ready:
-                    batch = futures[future]
-                    try:
-                        outcomes = future.result()
-                    except Exception as e:  # KilledWorker, CommClosedError, ...: the batch is lost
-                        outcomes = [e] * len(batch)
-                    yield from zip(batch, outcomes, strict=True)
+                try:
+                    future = done.get(timeout=POLL_S)
+                except queue.Empty:
+                    continue
+                batch = futures.pop(future)
+                try:
+                    outcomes, elapsed = future.result()
+                    per_item = elapsed / len(batch)
+                except Exception as e:  # KilledWorker, CommClosedError, ...: the batch is lost
+                    outcomes = [e] * len(batch)
+                send()  # before the results are handed on: the workers need not wait for their consumer
+                yield from zip(batch, outcomes, strict=True)
         finally:
             self.client.cancel([*futures, held])
+
+
+def batch_size(left: int, per_item: float | None, threads: int) -> int:
+    """Items in the next task, of `left` not yet sent: one while no item's time is known (the first
+    tasks start every worker at once, each opening what its cases share); then as many as last
+    TASK_S, at most MAX_BATCH (a lost worker loses no more, progress stays fine-grained) and at most
+    a share 1 / (2 threads) of those left, so the batches shrink at the end and every worker stays
+    busy to it."""
+    if per_item is None:
+        return 1
+    return max(1, min(int(TASK_S / max(per_item, 1e-9)), MAX_BATCH, left // (2 * threads)))
 
 
 def _load_code() -> None:
@@ -186,17 +203,19 @@ def _same(shared: tuple) -> tuple:
     return shared
 
 
-def _in_worker(fn: Callable, shared: tuple, batch: list) -> list:
+def _in_worker(fn: Callable, shared: tuple, batch: list) -> tuple[list, float]:
     """A task: `fn(*shared, item)` for each item of a batch in a Dask worker, where it may start
-    worker processes of its own; an item that raises gives its exception, the others go on."""
+    worker processes of its own; an item that raises gives its exception, the others go on. With
+    the s it took."""
     out: list = []
+    t0 = time.perf_counter()
     with children_allowed():
         for item in batch:
             try:
                 out.append(fn(*shared, item))
             except Exception as e:
                 out.append(e)
-    return out
+    return out, time.perf_counter() - t0
 
 
 _lifted = {"count": 0, "daemon": None}
