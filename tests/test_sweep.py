@@ -334,7 +334,7 @@ def test_a_stopped_sweep_keeps_its_finished_cases_and_the_same_command_goes_on(t
     last run does only the cases not done earlier."""
     out = tmp_path / "sw"
     cmd = [str(BIN / "master"), "sweep", str(OSCILLATOR), "--vary", "mass1.c=0.5:2:50", "--vary",
-           "mass2.m=0.5:2:2", "--stop-time", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
+           "mass2.m=0.5:2:2", "--stop-time", "4000", "--workers", "2", "--out", str(out)]  # fmt: skip
     first = _stopped(cmd, out, signal.SIGINT, tmp_path)
     assert 0 < len(first) < 100
     second = _stopped(cmd, out, signal.SIGTERM, tmp_path)
