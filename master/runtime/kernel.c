@@ -1271,9 +1271,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
         /* FMI 3 event mode: a discrete input that changed is an input event, at t where its sample is of
          * t or earlier, at t + h (after the step, which takes it as it was) where it is of a time in the
          * step, at a later point where it is of a later time */
-        const bool later = c->cs_events && n_in && discrete_changed(c, u, m, CS_IN_STEP);
-        const double *now = c->cs_events && n_in ? held_from(c, u, m, CS_IN_STEP) : u;
-        if (c->cs_events && n_in && discrete_changed(c, u, m, CS_AT_START)) {
+        const bool held = c->cs_events && c->n_cs_held; /* discrete inputs taken in event mode */
+        const bool later = held && discrete_changed(c, u, m, CS_IN_STEP);
+        const double *now = held ? held_from(c, u, m, CS_IN_STEP) : u;
+        if (held && discrete_changed(c, u, m, CS_AT_START)) {
             if ((st = cs_event(k, ci, now, j, &terminate)) != MK_DONE) return st;
         } else if (n_in && (st = set_inputs(c, now, &call)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, call, st, j);
@@ -1291,8 +1292,9 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             if ((st = me_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
         } else if (c->cs_events) {
             if ((st = cs_step(k, ci, u, t, j, final, &terminate)) != MK_DONE) return st;
-            const double *at_end = held_from(c, u, m, CS_AFTER_STEP); /* the input event at t + h */
-            if (later && !terminate && (st = cs_event(k, ci, at_end, j, &terminate)) != MK_DONE) return st;
+            if (later && !terminate && /* the input event at t + h */
+                (st = cs_event(k, ci, held_from(c, u, m, CS_AFTER_STEP), j, &terminate)) != MK_DONE)
+                return st;
         } else if ((st = c->intermediate ? intermediate_step(c, u, t, final, &terminate, &call)
                                          : do_step(c, t, final, &terminate)) > STATUS_OK)
             return fail(k, MK_FMI_ERROR, ci, c->intermediate ? call : MK_CALL_DO_STEP, st, j);
@@ -1301,9 +1303,10 @@ static int32_t communication_steps(mk_kernel *k, int32_t ci, int64_t n) {
             return MK_STOPPED;
         }
         /* the step-end inputs, in step mode: the discrete ones of an FMU in event mode as they were set */
-        const double *step_end = c->cs_events ? held_from(c, u + n_in, m, CS_AT_START) : u + n_in;
-        if (c->feedthrough && (st = set_inputs(c, step_end, &call)) > STATUS_OK)
-            return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        if (c->feedthrough) {
+            const double *step_end = held ? held_from(c, u + n_in, m, CS_AT_START) : u + n_in;
+            if ((st = set_inputs(c, step_end, &call)) > STATUS_OK) return fail(k, MK_FMI_ERROR, ci, call, st, j);
+        }
         double *row = c->hist + ((j + 1) % c->cap) * c->n_out;
         if (c->n_out && c->reads[m] && (st = read_outputs(k, ci, row, j, j + 1)) != MK_DONE) return st;
         if (c->n_out_string + c->n_out_binary && c->reads[m] && (st = read_strings(k, ci, c->strings, j, j + 1)) != MK_DONE)
@@ -1501,7 +1504,6 @@ static int32_t loop_jacobian(mk_kernel *k, mk_loop *L, int64_t n, const double *
     return MK_DONE;
 }
 
-/* LU factors of the n x n matrix a in place, rows exchanged as piv says; false if singular. */
 /* The first solve's test of what the FMUs only assumed: entries of `jac` exactly zero where the
  * dependency was assumed are dropped; if no cycle among the members is left, the loop becomes a
  * sequence (kernel.h: mk_loop). */
