@@ -41,14 +41,14 @@ int event_update(Instance *inst, const char *function, int *needed, int *states_
 }
 
 int event_iteration(Instance *inst, const char *function, int *states_changed, int *terminate) {
-    int needed = 1, changed = 0;
+    int needed, changed;
     *states_changed = *terminate = 0;
     for (int round = 0; round < MAX_EVENT_ROUNDS; round++) {
         if (event_update(inst, function, &needed, &changed, terminate)) return 1;
         *states_changed |= changed;
         if (!needed || *terminate) return 0;
     }
-    (void)function; /* the caller reports the failure, with this as the model's error */
+    /* the caller reports the failure, with this as the model's error */
     snprintf(inst->model_error, sizeof inst->model_error,
              ": the event iteration at t = %.17g s does not end (%d rounds)", inst->core->time, MAX_EVENT_ROUNDS);
     return 1;

@@ -509,7 +509,8 @@ LayerStatus exit_initialization(Instance *inst, const char *function) {
     inst->core->state = inst->kind == KIND_CO_SIMULATION ? ST_STEP_COMPLETE : ST_EVENT;
     solver_reset(inst->memory, m->n_states);
     inst->core->next_event_time = INFINITY;
-    if (inst->kind == KIND_CO_SIMULATION && m->update) { /* the initial event iteration, ME's importer's own */
+    /* the initial event iteration (Model Exchange and Co-Simulation in event mode: the importer's own) */
+    if (inst->kind == KIND_CO_SIMULATION && !inst->event_mode_used && m->update) {
         int changed = 0, terminate = 0;
         if (event_iteration(inst, function, &changed, &terminate)) {
             layer_log(inst, LOG_ERROR, "%s: the initial event iteration failed%s", function, model_error_suffix(inst));

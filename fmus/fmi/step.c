@@ -173,8 +173,7 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
             c->event_pending = 1;
             if (reached < t1) c->grid_steps = steps, c->grid_h = h, c->grid_t0 = t0, c->grid_t1 = t1;
             rc = 0;
-        } else
-            reached = t1;
+        }
     }
 
     /* Restore the inputs the master set and forget this step's derivatives. */
@@ -190,7 +189,7 @@ LayerStatus do_step(Instance *inst, const char *function, double t, double H) {
         return c->fatal ? LAYER_FATAL : LAYER_ERROR;
     }
     scatter_states(inst, inst->x);
-    c->time = c->event_pending ? reached : t1;
+    c->time = reached; /* t1, or the event's time where the step ended there */
     mark_dirty(inst);
     if (refresh(inst, 0, function) || check_finite(inst, function)) {
         c->state = ST_ERROR;
