@@ -13,7 +13,7 @@ import os
 from fractions import Fraction
 from pathlib import Path
 
-from master import extras
+from master import description, extras
 from master.backends import BACKENDS
 from master.backends.component import SimulationError
 from master.backends.driver import execute, interruption, stop_signals
@@ -167,13 +167,14 @@ def plan(sc: Scenario) -> Plan:
     for c in sc.components:
         try:
             md = read_description(Path(c.fmu_path))
-        except FmuError as e:
+            info = description.read(Path(c.fmu_path))  # read once per file version and process
+        except (FmuError, description.DescriptionError) as e:
             raise FmuError(f"{sc.path}: component {c.name}: {e}") from e
-        variables[c.name] = variables_of(md)
+        variables[c.name] = info.variables
         kind = MODEL_EXCHANGE if runs_as_model_exchange(md, c.model_exchange is not None) else CO_SIMULATION
         kind = SCHEDULED_EXECUTION if c.scheduled else kind
         # the interface it is instantiated for (none: `check` says)
-        caps[c.name] = interfaces(md, Path(c.fmu_path)).get(kind)
+        caps[c.name] = info.interfaces.get(kind)
     problems = check(sc)  # the planner keeps no rule of its own
     if problems:
         raise ScenarioError(problems)

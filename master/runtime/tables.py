@@ -561,9 +561,8 @@ class CompiledPlan:
         sizes = [variable(fmu, v.name).size for v in states]
         c.n_states = n = sum(sizes)
         interface = fmu.md.modelExchange
-        provides = getattr(interface, "providesDirectionalDerivative", False) or getattr(
-            interface, "providesDirectionalDerivatives", False
-        )
+        # FMI 2 only: fmpy does not read FMI 3's providesDirectionalDerivatives (then by differences)
+        provides = getattr(interface, "providesDirectionalDerivative", False)
         if provides and n and c.get_directional_derivative and all(s == 1 for s in sizes):
             c.me_state_vrs = self._vrs([v.valueReference for v in states])
             c.me_derivative_vrs = self._vrs([v.valueReference for v in derivatives])
